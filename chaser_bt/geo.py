@@ -1,0 +1,131 @@
+"""Frames and rotations: WGS84 <-> local ENU, NED <-> ENU, aircraft body <-> world.
+
+One local frame is used everywhere inside chaser-bt: ENU (x east, y north, z up), metres, with
+its origin at a geodetic reference (DESIGN §3). MAVLink speaks NED and 1e7-degree integers;
+those are converted at the vehicle boundary with the helpers here and nowhere else.
+
+Geodesy is pymap3d's; rotations are scipy's (scalar-last quaternions). Altitudes are whatever
+the caller's reference uses (MAVLink's AMSL in practice): a local frame only needs the origin
+and the points to share one vertical datum, since the geoid offset is constant over a few km.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pymap3d
+from scipy.spatial.transform import Rotation
+
+__all__ = [
+    "GeoPoint",
+    "LocalFrame",
+    "ned_to_enu",
+    "enu_to_ned",
+    "body_to_enu_rotation",
+    "euler_ned_from_rotation",
+    "heading_to_enu_yaw",
+    "enu_yaw_to_heading",
+    "quat_wxyz_to_xyzw",
+    "quat_xyzw_to_wxyz",
+    "wrap_pi",
+]
+
+# ENU <-> NED swaps x and y and flips z; FLU (x forward, y left, z up) <-> FRD flips y and z.
+_NED_ENU = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+_FLU_FRD = np.diag([1.0, -1.0, -1.0])
+_R_NED_ENU = Rotation.from_matrix(_NED_ENU)
+_R_FLU_FRD = Rotation.from_matrix(_FLU_FRD)
+
+
+@dataclass(frozen=True)
+class GeoPoint:
+    """A geodetic position: latitude and longitude in degrees, altitude in metres."""
+
+    lat_deg: float
+    lon_deg: float
+    alt_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not -90.0 <= self.lat_deg <= 90.0:
+            raise ValueError(f"latitude {self.lat_deg} deg is outside [-90, 90]")
+        if not -180.0 <= self.lon_deg <= 180.0:
+            raise ValueError(f"longitude {self.lon_deg} deg is outside [-180, 180]")
+
+
+@dataclass(frozen=True)
+class LocalFrame:
+    """The ENU frame tangent to the WGS84 ellipsoid at ``origin``."""
+
+    origin: GeoPoint
+
+    def to_enu(self, lat_deg: float, lon_deg: float, alt_m: float) -> np.ndarray:
+        """Geodetic point -> ENU metres, shape (3,)."""
+        o = self.origin
+        e, n, u = pymap3d.geodetic2enu(lat_deg, lon_deg, alt_m, o.lat_deg, o.lon_deg, o.alt_m)
+        return np.array([e, n, u], dtype=float)
+
+    def to_geodetic(self, enu: np.ndarray | tuple[float, float, float]) -> GeoPoint:
+        """ENU metres -> geodetic point."""
+        o = self.origin
+        lat, lon, alt = pymap3d.enu2geodetic(
+            float(enu[0]), float(enu[1]), float(enu[2]), o.lat_deg, o.lon_deg, o.alt_m
+        )
+        return GeoPoint(float(lat), float(lon), float(alt))
+
+    def point_to_enu(self, p: GeoPoint) -> np.ndarray:
+        """:meth:`to_enu` for a :class:`GeoPoint`."""
+        return self.to_enu(p.lat_deg, p.lon_deg, p.alt_m)
+
+
+def ned_to_enu(v: np.ndarray | tuple[float, float, float]) -> np.ndarray:
+    """A NED vector (north, east, down) as ENU (east, north, up)."""
+    return np.array([v[1], v[0], -v[2]], dtype=float)
+
+
+def enu_to_ned(v: np.ndarray | tuple[float, float, float]) -> np.ndarray:
+    """An ENU vector (east, north, up) as NED (north, east, down)."""
+    return np.array([v[1], v[0], -v[2]], dtype=float)
+
+
+def body_to_enu_rotation(roll: float, pitch: float, yaw: float) -> Rotation:
+    """Attitude as MAVLink reports it (FRD body -> NED, radians) as a FLU body -> ENU rotation.
+
+    ``R_enu_flu = R_enu_ned * R_ned_frd * R_frd_flu``; the returned rotation maps vectors in the
+    FLU body frame to ENU.
+    """
+    r_ned_frd = Rotation.from_euler("ZYX", [yaw, pitch, roll])
+    return _R_NED_ENU * r_ned_frd * _R_FLU_FRD
+
+
+def euler_ned_from_rotation(r_enu_flu: Rotation) -> tuple[float, float, float]:
+    """Inverse of :func:`body_to_enu_rotation`: (roll, pitch, yaw) of FRD body in NED, radians."""
+    r_ned_frd = _R_NED_ENU.inv() * r_enu_flu * _R_FLU_FRD.inv()
+    yaw, pitch, roll = r_ned_frd.as_euler("ZYX")
+    return float(roll), float(pitch), float(yaw)
+
+
+def heading_to_enu_yaw(heading_rad: float) -> float:
+    """Compass heading (clockwise from north) -> ENU yaw (counter-clockwise from east)."""
+    return wrap_pi(math.pi / 2.0 - heading_rad)
+
+
+def enu_yaw_to_heading(yaw_rad: float) -> float:
+    """ENU yaw (counter-clockwise from east) -> compass heading in [0, 2*pi)."""
+    return (math.pi / 2.0 - yaw_rad) % (2.0 * math.pi)
+
+
+def quat_wxyz_to_xyzw(q: tuple[float, float, float, float] | np.ndarray) -> np.ndarray:
+    """MAVLink's scalar-first quaternion -> scipy's scalar-last."""
+    return np.array([q[1], q[2], q[3], q[0]], dtype=float)
+
+
+def quat_xyzw_to_wxyz(q: tuple[float, float, float, float] | np.ndarray) -> np.ndarray:
+    """scipy's scalar-last quaternion -> MAVLink's scalar-first."""
+    return np.array([q[3], q[0], q[1], q[2]], dtype=float)
+
+
+def wrap_pi(angle: float) -> float:
+    """Wrap an angle to [-pi, pi)."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
