@@ -1,0 +1,35 @@
+"""Mission trees as data: port declarations, the behaviour registry, the YAML format, validation, loading.
+
+Behaviours declare typed ports (:func:`input_port`, :func:`output_port`) and register with
+:func:`register_behaviour`; :func:`load_tree` reads a tree file, reports every problem at once
+(:class:`TreeError` of :class:`Problem`) and only then builds the py_trees tree. The format is
+documented in ``docs/trees.md``.
+"""
+
+from chaser_bt.tree.blackboard import reset_blackboard
+from chaser_bt.tree.display import render_tree
+from chaser_bt.tree.errors import Problem, TreeError, UnknownNode
+from chaser_bt.tree.loader import MissionTree, load_tree, load_tree_text, validate_tree, validate_tree_text
+from chaser_bt.tree.ports import Port, input_port, output_port
+from chaser_bt.tree.registry import NodeKind, NodeType, Registry, default_registry, register_behaviour
+
+__all__ = [
+    "Port",
+    "input_port",
+    "output_port",
+    "NodeKind",
+    "NodeType",
+    "Registry",
+    "register_behaviour",
+    "default_registry",
+    "MissionTree",
+    "load_tree",
+    "load_tree_text",
+    "validate_tree",
+    "validate_tree_text",
+    "render_tree",
+    "reset_blackboard",
+    "Problem",
+    "TreeError",
+    "UnknownNode",
+]

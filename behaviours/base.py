@@ -1,0 +1,88 @@
+"""What every flight behaviour shares: the vehicle link, the clock, the vehicle-state port, hover on exit.
+
+Behaviours are py_trees leaves with typed ports (``py_trees.ports``). The runner hands them the
+:class:`~chaser_bt.vehicle.VehicleLink` and the mission :class:`~chaser_bt.mission.clock.Clock`
+through ``setup(link=..., clock=...)`` and writes the vehicle state to ``/vehicle/state`` before
+every tick; the ``state`` port reads it from there unless a tree wires it elsewhere.
+
+:class:`CommandingBehaviour` adds DESIGN §3's rule: a behaviour that commands the aircraft never
+leaves that command in force when it fails or is halted; it sends the hover command instead.
+"""
+
+from __future__ import annotations
+
+import enum
+from typing import Any
+
+import py_trees
+from pymavlink import mavutil
+
+from chaser_bt.mission.clock import Clock
+from chaser_bt.tree import input_port
+from chaser_bt.vehicle import VehicleLink, VehicleState
+
+__all__ = ["CommandingBehaviour", "FlightMode", "VehicleBehaviour", "state_port"]
+
+Status = py_trees.common.Status
+
+#: ArduCopter's flight modes by name, as pymavlink maps them (so YAML says ``mode: RTL``).
+FlightMode = enum.Enum("FlightMode", {name: name for name in mavutil.mode_mapping_acm.values()})
+
+
+def state_port() -> Any:
+    """The vehicle-state input port every flight behaviour declares."""
+    return input_port(
+        VehicleState,
+        "Vehicle state from telemetry (the runner writes it before each tick)",
+        default_key="/vehicle/state",
+    )
+
+
+class VehicleBehaviour(py_trees.ports.BehaviourWithPorts):
+    """A leaf that reads the vehicle state and may talk to the vehicle link.
+
+    Subclasses declare ``INPUT_PORTS`` (including ``"state": state_port()``) and
+    ``OUTPUT_PORTS`` and implement ``update()``.
+    """
+
+    INPUT_PORTS: dict[str, Any]
+    OUTPUT_PORTS: dict[str, Any]
+
+    def __init__(self, name: str, **kwargs: Any) -> None:
+        super().__init__(name=name, **kwargs)
+        self.link: VehicleLink | None = None
+        self.clock: Clock | None = None
+
+    def setup(self, **kwargs: Any) -> None:
+        """Take the link and clock the runner distributes; both are required to fly."""
+        try:
+            self.link = kwargs["link"]
+            self.clock = kwargs["clock"]
+        except KeyError as missing:
+            raise KeyError(f"{self.name}: setup() needs {missing} (the mission runner passes it)") from None
+
+    @property
+    def state(self) -> VehicleState:
+        """The vehicle state for this tick."""
+        return self.get_input("state")
+
+    def _link(self) -> VehicleLink:
+        assert self.link is not None, f"{self.name}: setup() was not called"
+        return self.link
+
+    def _now(self) -> float:
+        assert self.clock is not None, f"{self.name}: setup() was not called"
+        return self.clock.now()
+
+
+class CommandingBehaviour(VehicleBehaviour):
+    """A leaf that sends set-points or mode commands: hover when it fails or is halted."""
+
+    #: Set False by leaves whose command is itself a safe end state (RTL, LAND).
+    HOVER_ON_HALT = True
+
+    def terminate(self, new_status: Status) -> None:
+        halted = new_status == Status.INVALID and self.status == Status.RUNNING
+        if self.link is not None and (new_status == Status.FAILURE or (halted and self.HOVER_ON_HALT)):
+            self.link.hover()
+            self.feedback_message = f"{self.feedback_message} (hover sent)".strip()

@@ -1,0 +1,83 @@
+"""GoTo: fly to a waypoint in GUIDED and succeed inside the acceptance radius."""
+
+from __future__ import annotations
+
+import enum
+
+import numpy as np
+import py_trees
+
+from behaviours.base import CommandingBehaviour, state_port
+from chaser_bt.geo import GeoPoint
+from chaser_bt.tree import input_port, register_behaviour
+
+Status = py_trees.common.Status
+
+
+class WaypointFrame(enum.Enum):
+    """How GoTo reads its waypoint."""
+
+    ENU = "enu"  # [east, north, up] metres from the mission origin (the vehicle's home by default)
+    GLOBAL = "global"  # [lat_deg, lon_deg, alt_m above home]
+
+
+@register_behaviour
+class GoTo(CommandingBehaviour):
+    """Send one GUIDED position target and wait until the vehicle is within ``acceptance_radius_m``.
+
+    ArduCopter holds a position target until it is replaced (DESIGN §5); the target is re-sent every
+    ``resend_s`` anyway, so a lost datagram costs a second, not the mission. FAILURE when the vehicle
+    leaves GUIDED (a failsafe or the pilot took over): the tree decides what comes next.
+    """
+
+    INPUT_PORTS = {
+        "waypoint": input_port(list[float], "[east, north, up] m (frame enu) or [lat_deg, lon_deg, alt_m] (frame global)"),
+        "frame": input_port(WaypointFrame, "enu or global", default=WaypointFrame.ENU),
+        "acceptance_radius_m": input_port(float, "Arrived when this close to the waypoint (m)", default=2.0),
+        "speed_mps": input_port(float, "Horizontal speed (m/s); 0 keeps the vehicle's WPNAV_SPEED", default=0.0),
+        "resend_s": input_port(float, "Re-send the target this often (s)", default=1.0),
+        "state": state_port(),
+    }
+    OUTPUT_PORTS: dict = {}
+
+    def initialise(self) -> None:
+        self._target_enu: np.ndarray | None = None
+        self._last_sent_s = -np.inf
+        speed = self.get_input("speed_mps")
+        if speed > 0:
+            self._link().set_speed(speed)
+
+    def update(self) -> Status:
+        state, link = self.state, self._link()
+        if state.mode != "GUIDED":
+            self.feedback_message = f"vehicle is in {state.mode or 'an unknown mode'}, not GUIDED"
+            return Status.FAILURE
+        if self._target_enu is None:
+            target = self._resolve_target()
+            if target is None:
+                return Status.FAILURE
+            self._target_enu = target
+        now = self._now()
+        if now - self._last_sent_s >= self.get_input("resend_s"):
+            link.goto_enu(self._target_enu)
+            self._last_sent_s = now
+        distance = float(np.linalg.norm(state.position_enu - self._target_enu))
+        if distance <= self.get_input("acceptance_radius_m"):
+            self.feedback_message = f"arrived ({distance:.1f} m)"
+            return Status.SUCCESS
+        self.feedback_message = f"{distance:.0f} m to go"
+        return Status.RUNNING
+
+    def _resolve_target(self) -> np.ndarray | None:
+        waypoint = self.get_input("waypoint")
+        if len(waypoint) != 3:
+            self.feedback_message = f"waypoint needs 3 numbers, got {len(waypoint)}"
+            return None
+        if self.get_input("frame") is WaypointFrame.ENU:
+            return np.asarray(waypoint, dtype=float)
+        frame, home = self._link().frame, self.state.home
+        if frame is None or home is None:
+            self.feedback_message = "vehicle home not known yet"
+            return None
+        lat, lon, alt_rel = waypoint
+        return frame.point_to_enu(GeoPoint(lat, lon, home.alt_m + alt_rel))

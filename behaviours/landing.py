@@ -1,0 +1,74 @@
+"""RTL and Land: hand the aircraft to ArduCopter's own return and landing, and wait for touchdown."""
+
+from __future__ import annotations
+
+import abc
+
+import py_trees
+
+from behaviours.base import CommandingBehaviour, state_port
+from chaser_bt.tree import input_port, register_behaviour
+from chaser_bt.vehicle import Command
+
+Status = py_trees.common.Status
+
+
+class _AutopilotLanding(CommandingBehaviour):
+    """Request a landing mode once; SUCCESS on acceptance, or once landed and disarmed."""
+
+    MODE = ""
+    # RTL and LAND are already the safe end state: halting them must not replace them with a hover.
+    HOVER_ON_HALT = False
+
+    INPUT_PORTS = {
+        "wait_landed": input_port(bool, "Stay RUNNING until landed and disarmed", default=True),
+        "state": state_port(),
+    }
+    OUTPUT_PORTS: dict = {}
+
+    @abc.abstractmethod
+    def _request(self) -> Command:
+        """Send this leaf's one link command."""
+
+    def initialise(self) -> None:
+        self._command = self._request()
+
+    def update(self) -> Status:
+        state = self.state
+        if not self._command.done:
+            self.feedback_message = f"requesting {self.MODE}"
+            return Status.RUNNING
+        if not self._command.ok:
+            self.feedback_message = f"{self.MODE} refused: {self._command.reason or self._command.status.name}"
+            return Status.FAILURE
+        if not self.get_input("wait_landed"):
+            self.feedback_message = f"in {self.MODE}"
+            return Status.SUCCESS
+        if not state.armed:
+            self.feedback_message = "landed and disarmed"
+            return Status.SUCCESS
+        if state.mode != self.MODE:
+            self.feedback_message = f"left {self.MODE} for {state.mode} before landing"
+            return Status.FAILURE
+        self.feedback_message = f"{self.MODE}: {state.alt_rel_m:.1f} m above home"
+        return Status.RUNNING
+
+
+@register_behaviour
+class RTL(_AutopilotLanding):
+    """Return to launch (ArduCopter RTL: climb to RTL_ALT, fly home, land, disarm)."""
+
+    MODE = "RTL"
+
+    def _request(self) -> Command:
+        return self._link().rtl()
+
+
+@register_behaviour
+class Land(_AutopilotLanding):
+    """Land where the aircraft is (ArduCopter LAND) and wait for the disarm."""
+
+    MODE = "LAND"
+
+    def _request(self) -> Command:
+        return self._link().land()

@@ -1,0 +1,186 @@
+"""`chaser-bt`: validate, show, run and rehearse mission trees; start the built-in simulator.
+
+Exit codes: 0 success, 1 the mission failed or the vehicle could not be flown, 2 bad input
+(an invalid tree or scenario, a bad argument). The simulator and the rehearsal harness are
+imported lazily: chaser_bt itself never depends on ``sitl`` (DESIGN §2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from pathlib import Path
+from typing import Callable, Sequence
+
+__all__ = ["main"]
+
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+
+log = logging.getLogger("chaser_bt.cli")
+
+
+class _BadInput(Exception):
+    """Input the user must fix; the message says what and where."""
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = _parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(
+        level=logging.DEBUG if args.verbose > 1 else logging.INFO if args.verbose else logging.WARNING,
+        format="%(levelname)s %(name)s: %(message)s",
+    )
+    try:
+        return args.handler(args)
+    except _BadInput as exc:
+        print(f"chaser-bt: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="chaser-bt", description=__doc__.splitlines()[0])
+    parser.add_argument("-v", "--verbose", action="count", default=0, help="more logging (-vv for debug)")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def command(name: str, handler: Callable[[argparse.Namespace], int], help_: str) -> argparse.ArgumentParser:
+        p = sub.add_parser(name, help=help_, description=help_)
+        p.set_defaults(handler=handler)
+        return p
+
+    p = command("validate", _validate, "check a tree against the behaviour declarations; list every problem")
+    p.add_argument("tree", type=Path)
+
+    p = command("show", _show, "print a tree as a unicode outline with its port values")
+    p.add_argument("tree", type=Path)
+
+    p = command("run", _run, "fly a tree against a vehicle (the simulator, ArduPilot SITL or a real ArduCopter)")
+    p.add_argument("tree", type=Path)
+    p.add_argument("--connect", required=True, metavar="URL", help="pymavlink connection string: tcp:HOST:PORT, udpout:, udpin:, serial device")
+    p.add_argument("--rate-hz", type=float, default=10.0, help="tick rate (default 10)")
+    p.add_argument("--clock", choices=("vehicle", "wall"), default="vehicle", help="tick on the vehicle's boot time (default; right at any sim speed-up) or on the wall clock")
+
+    p = command("rehearse", _rehearse, "fly a tree against the in-process simulator and report")
+    p.add_argument("tree", type=Path)
+    p.add_argument("--scenario", required=True, type=Path)
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--rate-hz", type=float, default=10.0)
+    p.add_argument("--json", action="store_true", help="print the report as one JSON object")
+
+    p = command("sitl", _sitl, "start the built-in ArduCopter-compatible simulator on loopback")
+    p.add_argument("--scenario", required=True, type=Path)
+    p.add_argument("--speedup", type=float, default=1.0, help="simulated seconds per wall second")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--tcp-port", type=int, default=5760)
+    p.add_argument("--udp-port", type=int, default=14550)
+    return parser
+
+
+# -- trees --------------------------------------------------------------------------------------
+
+
+def _load_tree(path: Path):
+    from chaser_bt.tree import TreeError, load_tree
+
+    try:
+        return load_tree(path)
+    except TreeError as exc:
+        raise _BadInput(f"{path}: invalid tree\n{exc}") from None
+    except OSError as exc:
+        raise _BadInput(f"{path}: {exc.strerror or exc}") from None
+
+
+def _validate(args: argparse.Namespace) -> int:
+    from chaser_bt.tree import validate_tree
+
+    if not args.tree.is_file():
+        raise _BadInput(f"{args.tree}: no such file")
+    problems = validate_tree(args.tree)
+    if problems:
+        print("\n".join(str(p) for p in problems), file=sys.stderr)
+        print(f"{args.tree}: {len(problems)} problem(s)", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    print(f"{args.tree}: ok")
+    return EXIT_OK
+
+
+def _show(args: argparse.Namespace) -> int:
+    from chaser_bt.tree import render_tree
+
+    print(render_tree(_load_tree(args.tree)))
+    return EXIT_OK
+
+
+# -- flying ---------------------------------------------------------------------------------------
+
+
+def _run(args: argparse.Namespace) -> int:
+    from chaser_bt.mission.clock import FunctionClock, WallClock
+    from chaser_bt.mission.runner import MissionRunner, RunStatus
+    from chaser_bt.vehicle import VehicleError, VehicleLink
+
+    tree = _load_tree(args.tree)
+    try:
+        link = VehicleLink.connect(args.connect)
+    except VehicleError as exc:
+        print(f"chaser-bt: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+    clock = WallClock() if args.clock == "wall" else FunctionClock(lambda: link.state.t_boot_s)
+    runner = MissionRunner(tree, link, clock, rate_hz=args.rate_hz)
+    print(f"flying {tree.name} on {args.connect} (Ctrl-C hands the aircraft back hovering)")
+    try:
+        result = runner.run()
+    finally:
+        link.close()
+    state = link.state
+    print(f"{result.status.value}: {result.message or '-'} after {result.ticks} ticks; vehicle {state.mode}, {'armed' if state.armed else 'disarmed'}")
+    return EXIT_OK if result.status is RunStatus.SUCCESS else EXIT_FAILED
+
+
+def _rehearse(args: argparse.Namespace) -> int:
+    tree = _load_tree(args.tree)
+    scenario = _load_scenario(args.scenario)
+    from sitl.rehearsal import rehearse
+
+    report = rehearse(tree, scenario, args.seed, rate_hz=args.rate_hz)
+    if args.json:
+        print(json.dumps(report.to_dict()))
+    else:
+        _print_report(report.to_dict())
+    return EXIT_OK if report.outcome in ("landed", "completed", "following") else EXIT_FAILED
+
+
+def _print_report(report: dict) -> None:
+    width = max(len(k) for k in report)
+    for key, value in report.items():
+        print(f"  {key:<{width}}  {value}")
+
+
+def _load_scenario(path: Path):
+    from sitl.scenario import ScenarioError, load_scenario
+
+    try:
+        return load_scenario(path)
+    except ScenarioError as exc:
+        raise _BadInput(str(exc)) from None
+    except OSError as exc:
+        raise _BadInput(f"{path}: {exc.strerror or exc}") from None
+
+
+def _sitl(args: argparse.Namespace) -> int:
+    scenario = _load_scenario(args.scenario)
+    from sitl.server import serve
+
+    def ready(connection_strings: list[str]) -> None:
+        print(f"simulating {scenario.name} at {args.speedup:g}x; connect with:")
+        for url in connection_strings:
+            print(f"  {url}")
+        sys.stdout.flush()
+
+    serve(scenario, seed=args.seed, speedup=args.speedup, udp_port=args.udp_port, tcp_port=args.tcp_port, ready=ready)
+    return EXIT_OK
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,233 @@
+"""The mission runner: ticks a validated tree against a vehicle at a fixed rate on a Clock.
+
+The runner owns the wiring every mission shares, so behaviours stay thin:
+
+* shared resources reach behaviours through py_trees' ``setup(link=..., clock=...)``;
+* the vehicle's state is written to the blackboard under :data:`VEHICLE_STATE_KEY` (and the mission
+  time under :data:`MISSION_TIME_KEY`) before every tick, so leaves read it through their ports;
+* ticks happen when the clock says one is due, never from a sleep, so the same loop runs lock-step
+  inside a rehearsal (:meth:`tick_if_due`) and in real time against a vehicle (:meth:`run`);
+* a stop (success, failure, Ctrl-C, an exception in a leaf) halts the tree, which makes every
+  running leaf terminate and hover, then sends the hover command once more for good measure
+  (paper section 3.2: hover on exit).
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import py_trees
+
+from chaser_bt.mission.clock import Clock
+from chaser_bt.tree import MissionTree
+from chaser_bt.vehicle import VehicleError, VehicleLink
+
+__all__ = ["MISSION_TIME_KEY", "VEHICLE_STATE_KEY", "MissionRunner", "RunResult", "RunStatus"]
+
+log = logging.getLogger(__name__)
+
+VEHICLE_STATE_KEY = "/vehicle/state"
+MISSION_TIME_KEY = "/mission/time_s"
+
+
+class RunStatus(enum.Enum):
+    """How a mission run ended."""
+
+    SUCCESS = "success"  # the root returned SUCCESS
+    FAILURE = "failure"  # the root returned FAILURE
+    INTERRUPTED = "interrupted"  # stopped from outside (Ctrl-C, time limit)
+    ERROR = "error"  # a leaf raised, or the vehicle link failed
+
+
+@dataclass
+class RunResult:
+    """Outcome of :meth:`MissionRunner.run` (or of a lock-step rehearsal)."""
+
+    status: RunStatus
+    ticks: int
+    message: str = ""
+
+
+@dataclass
+class _TickStats:
+    count: int = 0
+    wall_ms: list[float] = field(default_factory=list)
+
+
+class MissionRunner:
+    """Tick a :class:`MissionTree` against a :class:`VehicleLink` at ``rate_hz`` on ``clock``.
+
+    Args:
+        tree: a validated mission tree (see :func:`chaser_bt.tree.load_tree`).
+        link: the vehicle link; polled by :meth:`run`, or by the caller in lock-step use.
+        clock: mission time; vehicle time against the simulator, wall time on a real aircraft.
+        rate_hz: tick rate in clock seconds.
+        perf_counter: wall timer used only to measure how long a tick takes (diagnostics).
+    """
+
+    def __init__(
+        self,
+        tree: MissionTree,
+        link: VehicleLink,
+        clock: Clock,
+        *,
+        rate_hz: float = 10.0,
+        perf_counter: Callable[[], float] = time.perf_counter,
+    ) -> None:
+        if rate_hz <= 0:
+            raise ValueError(f"rate_hz must be positive, got {rate_hz}")
+        self.tree = tree
+        self.link = link
+        self.clock = clock
+        self.period_s = 1.0 / rate_hz
+        self._perf = perf_counter
+        self._bt = py_trees.trees.BehaviourTree(tree.root)
+        self._next_tick_s: float | None = None
+        self._stats = _TickStats()
+        self._blackboard = py_trees.blackboard.Client(name="MissionRunner")
+        self._blackboard.register_key(VEHICLE_STATE_KEY, access=py_trees.common.Access.WRITE)
+        self._blackboard.register_key(MISSION_TIME_KEY, access=py_trees.common.Access.WRITE)
+        self._status_listeners: list[Callable[[float, str, str], None]] = []
+        self._last_status: dict[object, py_trees.common.Status] = {}
+        self._set_up = False
+
+    # -- lifecycle --------------------------------------------------------------------------
+
+    def setup(self) -> None:
+        """Hand the link and clock to every behaviour (py_trees ``setup(**kwargs)``)."""
+        self._publish(self.clock.now())
+        self._bt.setup(link=self.link, clock=self.clock)
+        self._set_up = True
+
+    @property
+    def status(self) -> py_trees.common.Status:
+        """The root's status after the last tick (INVALID before the first)."""
+        return self._bt.root.status
+
+    @property
+    def finished(self) -> bool:
+        """True once the root has returned SUCCESS or FAILURE."""
+        return self.status in (py_trees.common.Status.SUCCESS, py_trees.common.Status.FAILURE)
+
+    @property
+    def ticks(self) -> int:
+        return self._stats.count
+
+    @property
+    def tick_wall_ms(self) -> list[float]:
+        """Wall time of every tick so far, in milliseconds (for benchmarks)."""
+        return self._stats.wall_ms
+
+    def on_status_change(self, listener: Callable[[float, str, str], None]) -> None:
+        """Call ``listener(t, node_name, new_status)`` whenever a node's status changes."""
+        self._status_listeners.append(listener)
+
+    # -- ticking ----------------------------------------------------------------------------
+
+    def due(self) -> bool:
+        """True when the clock has reached the next tick time."""
+        now = self.clock.now()
+        if math.isnan(now):  # no vehicle time yet
+            return False
+        return self._next_tick_s is None or now >= self._next_tick_s
+
+    def tick(self) -> py_trees.common.Status:
+        """Publish the vehicle state, tick the tree once, schedule the next tick."""
+        if not self._set_up:
+            self.setup()
+        now = self.clock.now()
+        self._publish(now)
+        start = self._perf()
+        self._bt.tick()
+        self._stats.wall_ms.append((self._perf() - start) * 1e3)
+        self._stats.count += 1
+        # Keep to the grid rather than drifting by the tick's own lateness.
+        if self._next_tick_s is None:
+            self._next_tick_s = now
+        self._next_tick_s = max(self._next_tick_s + self.period_s, now)
+        self._notify_status_changes(now)
+        return self.status
+
+    def tick_if_due(self) -> bool:
+        """Tick when due; returns whether it ticked. The lock-step entry point."""
+        if self.due():
+            self.tick()
+            return True
+        return False
+
+    def stop(self, reason: str = "stopped") -> None:
+        """Halt the tree (running leaves terminate and hover) and leave the aircraft hovering.
+
+        Never raises: it runs on the way out of errors, and must not mask them.
+        """
+        log.info("stopping mission: %s", reason)
+        try:
+            self._bt.root.stop(py_trees.common.Status.INVALID)
+        except Exception:
+            log.exception("a behaviour raised while being halted")
+        try:
+            self.link.hover()
+        except Exception as exc:  # nothing more can be sent; the autopilot's failsafes take over
+            log.error("could not send hover on stop: %s", exc)
+
+    def tip_message(self) -> str:
+        """The deepest running node and its feedback: why the tree is where it is."""
+        tip = self._bt.root.tip()
+        if tip is None:
+            return ""
+        return f"{tip.name}: {tip.feedback_message}" if tip.feedback_message else tip.name
+
+    def run(
+        self,
+        *,
+        should_stop: Callable[[], bool] = lambda: False,
+        idle: Callable[[], None] = lambda: time.sleep(0.002),
+    ) -> RunResult:
+        """Real-time loop: poll the link, tick when due, until the root finishes or a stop.
+
+        ``idle`` is called between polls (a short sleep by default). Ctrl-C, a vehicle error or a
+        leaf's exception all end in :meth:`stop`, so the aircraft is left hovering.
+        """
+        try:
+            if not self._set_up:
+                self.setup()
+            while not should_stop():
+                self.link.poll()
+                if self.tick_if_due() and self.finished:
+                    status = RunStatus.SUCCESS if self.status == py_trees.common.Status.SUCCESS else RunStatus.FAILURE
+                    message = self.tip_message()
+                    self.stop(f"root returned {self.status.name}")
+                    return RunResult(status, self.ticks, message)
+                idle()
+            self.stop("stop requested")
+            return RunResult(RunStatus.INTERRUPTED, self.ticks, "stop requested")
+        except KeyboardInterrupt:
+            self.stop("interrupted by the operator")
+            return RunResult(RunStatus.INTERRUPTED, self.ticks, "interrupted by the operator")
+        except VehicleError as exc:
+            self.stop(str(exc))
+            return RunResult(RunStatus.ERROR, self.ticks, str(exc))
+        except Exception as exc:  # a leaf raised: never leave a command in force
+            log.exception("mission tick raised")
+            self.stop(f"{type(exc).__name__}: {exc}")
+            return RunResult(RunStatus.ERROR, self.ticks, f"{type(exc).__name__}: {exc}")
+
+    # -- internals --------------------------------------------------------------------------
+
+    def _publish(self, now: float) -> None:
+        self._blackboard.set(VEHICLE_STATE_KEY, self.link.state)
+        self._blackboard.set(MISSION_TIME_KEY, now)
+
+    def _notify_status_changes(self, now: float) -> None:
+        if not self._status_listeners:
+            return
+        for node in self._bt.root.iterate():
+            if self._last_status.get(node.id) != node.status:
+                self._last_status[node.id] = node.status
+                for listener in self._status_listeners:
+                    listener(now, node.name, node.status.name)

@@ -1,0 +1,58 @@
+"""Unicode rendering of a mission tree with each node's port values, for ``chaser-bt show``.
+
+The layout and symbols are py_trees' ``display.unicode_tree`` (``{-}`` sequence with memory,
+``[-]`` reactive sequence, ``{o}``/``[o]`` the fallbacks, ``/_/`` parallel, ``-^-`` decorator,
+``-->`` leaf); each line adds the node id when the instance is named differently, and its
+ports as the tree gave them: literals as values, blackboard keys as ``{/key}``. Plain text,
+no terminal escapes, so it reads the same in a log.
+"""
+
+from __future__ import annotations
+
+import py_trees
+from py_trees.common import Status
+
+from chaser_bt.tree.control import Parallel
+from chaser_bt.tree.loader import MissionTree
+
+__all__ = ["render_tree"]
+
+_STATUS = {Status.SUCCESS: "✓", Status.FAILURE: "✕", Status.RUNNING: "*", Status.INVALID: "-"}
+
+
+def render_tree(tree: MissionTree, show_status: bool = False) -> str:
+    """The tree as indented lines; with ``show_status`` each node's last status and feedback too."""
+    lines: list[str] = []
+    _render(tree.root, tree, 0, show_status, lines)
+    return "\n".join(lines) + "\n"
+
+
+def _render(
+    node: py_trees.behaviour.Behaviour, tree: MissionTree, depth: int, show_status: bool, lines: list[str]
+) -> None:
+    text = f"{'    ' * depth}{_symbol(node)} {node.name}"
+    kind = type(node).__name__
+    if kind != node.name:
+        text += f" ({kind})"
+    ports = tree.wiring.get(node.id, {})
+    if ports:
+        text += "  " + " ".join(f"{port}={value}" for port, value in ports.items())
+    if show_status:
+        text += f" [{_STATUS[node.status]}]"
+        if node.feedback_message:
+            text += f" -- {node.feedback_message}"
+    lines.append(text)
+    for child in node.children:
+        _render(child, tree, depth + 1, show_status, lines)
+
+
+def _symbol(node: py_trees.behaviour.Behaviour) -> str:
+    if isinstance(node, (py_trees.composites.Parallel, Parallel)):
+        return "/_/"
+    if isinstance(node, py_trees.decorators.Decorator):
+        return "-^-"
+    if isinstance(node, py_trees.composites.Sequence):
+        return "{-}" if node.memory else "[-]"
+    if isinstance(node, py_trees.composites.Selector):
+        return "{o}" if node.memory else "[o]"
+    return "-->"

@@ -1,0 +1,224 @@
+"""Port declarations on py_trees' typed ports, plus BT.CPP's blackboard-reference and literal rules.
+
+A behaviour declares its ports once, the py_trees way (``INPUT_PORTS`` / ``OUTPUT_PORTS`` on a
+:class:`py_trees.ports.BehaviourWithPorts`), and the loader checks every tree against those
+declarations before anything flies. :class:`Port` adds one thing py_trees lacks: BT.CPP's
+default remapping, the blackboard key a port uses when a tree leaves it unwired (e.g. the
+vehicle state every flight behaviour reads from ``/vehicle/state``).
+
+A port's value in a tree is either a literal or a blackboard reference written ``{key}``
+exactly as in BehaviorTree.CPP (``{@key}`` is the root blackboard from inside a subtree,
+``{=}`` a key named like the port). Literal strings go through py_trees'
+``convert_str_to_type`` so the YAML and the BT.CPP-XML loaders convert text the same way.
+"""
+
+from __future__ import annotations
+
+import enum
+import re
+import types
+import typing
+from dataclasses import dataclass
+from typing import Any
+
+import py_trees.ports
+from py_trees.ports_utils import convert_str_to_type, is_instance_of_type
+
+__all__ = [
+    "Port",
+    "input_port",
+    "output_port",
+    "LiteralError",
+    "coerce_literal",
+    "has_literal_form",
+    "type_name",
+    "parse_reference",
+    "is_reference_text",
+    "SAME_AS_PORT",
+]
+
+#: ``{=}``: BT.CPP v4's shorthand for "the key named like this port".
+SAME_AS_PORT = "="
+
+_SEGMENT = r"[A-Za-z_][A-Za-z0-9_]*"
+_KEY = re.compile(rf"@?{_SEGMENT}(?:/{_SEGMENT})*")
+
+
+@dataclass(frozen=True)
+class Port(py_trees.ports.PortInformation):
+    """py_trees' PortInformation plus BT.CPP's default remapping.
+
+    Args:
+        default_key: the blackboard key the port uses when a tree does not wire it, e.g.
+            ``"/vehicle/state"``; absolute keys start with ``/``, others are relative to the
+            subtree's blackboard scope.
+    """
+
+    default_key: str | None = None
+
+    @property
+    def satisfied_without_wiring(self) -> bool:
+        """Whether a tree may leave this port out (it is optional, has a default or a default key)."""
+        return not self.required or self.has_default or self.default_key is not None
+
+
+def input_port(
+    data_type: Any,
+    description: str,
+    *,
+    default: Any = None,
+    default_key: str | None = None,
+    required: bool = True,
+) -> Port:
+    """Declare an input port; a default is coerced like a tree literal (``[0, 0, 0]`` for ``list[float]``)."""
+    if default is not None:
+        default = coerce_literal(default, data_type)
+    return Port(
+        data_type=data_type,
+        required=required,
+        description=description,
+        default_value=default,
+        default_key=default_key,
+    )
+
+
+def output_port(data_type: Any, description: str, *, default_key: str | None = None) -> Port:
+    """Declare an output port; trees need not wire outputs (BT.CPP), unwired ones write a private key."""
+    return Port(data_type=data_type, required=False, description=description, default_key=default_key)
+
+
+def is_reference_text(value: Any) -> bool:
+    """Whether ``value`` is a string that tries to be a ``{key}`` reference (has a brace)."""
+    return isinstance(value, str) and ("{" in value or "}" in value)
+
+
+def parse_reference(value: str) -> str:
+    """Return the key inside a ``{key}`` reference.
+
+    Raises:
+        ValueError: the braces do not enclose exactly one well-formed key.
+    """
+    if not (value.startswith("{") and value.endswith("}")) or value.count("{") != 1 or value.count("}") != 1:
+        raise ValueError(f"malformed blackboard reference {value!r}: write exactly '{{key}}'")
+    key = value[1:-1].strip()
+    if key == SAME_AS_PORT:
+        return key
+    if not _KEY.fullmatch(key):
+        raise ValueError(
+            f"malformed blackboard reference {value!r}: a key is letters, digits and '_', "
+            "with '/' between namespaces and an optional leading '@' for the root blackboard"
+        )
+    return key
+
+
+class LiteralError(ValueError):
+    """A literal that does not fit a port's type."""
+
+
+def type_name(data_type: Any) -> str:
+    """A short readable name for a port type: ``float``, ``list[float]``, ``FlightMode``."""
+    if data_type is object or data_type is Any:
+        return "any"
+    if typing.get_origin(data_type) is not None:
+        return str(data_type).replace("typing.", "")
+    return getattr(data_type, "__name__", str(data_type))
+
+
+def has_literal_form(data_type: Any) -> bool:
+    """Whether a tree can give this type as a literal (scalars, enums, lists and unions of them)."""
+    origin = typing.get_origin(data_type)
+    if origin in (typing.Union, types.UnionType):
+        return all(has_literal_form(a) for a in typing.get_args(data_type) if a is not type(None))
+    if origin is list:
+        args = typing.get_args(data_type)
+        return not args or has_literal_form(args[0])
+    if data_type in (object, Any, str, int, float, bool, list):
+        return True
+    return _is_enum(data_type)
+
+
+def coerce_literal(value: Any, data_type: Any) -> Any:
+    """Turn a tree literal into a value of ``data_type``, or raise :class:`LiteralError`.
+
+    Ints are accepted for floats (also inside ``list[float]``), bools are not numbers,
+    strings go through py_trees' ``convert_str_to_type``.
+    """
+    if value is None:
+        raise LiteralError("null is not a value: leave the port out to use its default")
+    if data_type is object or data_type is Any:
+        return value
+    origin = typing.get_origin(data_type)
+    if origin in (typing.Union, types.UnionType):
+        for member in typing.get_args(data_type):
+            if member is type(None):
+                continue
+            try:
+                return coerce_literal(value, member)
+            except LiteralError:
+                continue
+        raise LiteralError(_mismatch(value, data_type))
+    if isinstance(value, str):
+        return _from_string(value, data_type)
+    if origin is list or data_type is list:
+        return _coerce_list(value, data_type)
+    if data_type is float:
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            return float(value)
+    elif data_type is int:
+        if isinstance(value, int) and not isinstance(value, bool):
+            return value
+    elif data_type is bool:
+        if isinstance(value, bool):
+            return value
+    elif _is_enum(data_type):
+        if isinstance(value, data_type):
+            return value
+        for member in data_type:
+            if member.value == value and type(member.value) is type(value):
+                return member
+    elif isinstance(data_type, type) and isinstance(value, data_type):
+        return value
+    raise LiteralError(_mismatch(value, data_type))
+
+
+def _coerce_list(value: Any, data_type: Any) -> list[Any]:
+    if not isinstance(value, list):
+        raise LiteralError(_mismatch(value, data_type))
+    args = typing.get_args(data_type)
+    inner = args[0] if args else object
+    items = []
+    for index, item in enumerate(value):
+        try:
+            items.append(coerce_literal(item, inner))
+        except LiteralError as e:
+            raise LiteralError(f"item {index}: {e}") from None
+    return items
+
+
+def _from_string(value: str, data_type: Any) -> Any:
+    if data_type is str:
+        return value
+    try:
+        ok, converted = convert_str_to_type(value, data_type)
+    except (ValueError, TypeError, ImportError, AttributeError):
+        ok, converted = False, value
+    if ok:
+        try:
+            if is_instance_of_type(converted, data_type):
+                return converted
+        except NotImplementedError:
+            pass
+    raise LiteralError(_mismatch(value, data_type))
+
+
+def _mismatch(value: Any, data_type: Any) -> str:
+    message = f"expected {type_name(data_type)}, got {type(value).__name__} {value!r}"
+    if _is_enum(data_type):
+        message += f" (one of {', '.join(m.name for m in data_type)})"
+    elif not has_literal_form(data_type):
+        message += f" ({type_name(data_type)} has no literal form: wire it with a {{key}} reference)"
+    return message
+
+
+def _is_enum(data_type: Any) -> bool:
+    return typing.get_origin(data_type) is None and isinstance(data_type, type) and issubclass(data_type, enum.Enum)

@@ -1,0 +1,385 @@
+"""Checks a parsed tree against the registry and resolves its blackboard wiring, collecting every problem.
+
+Validation and wiring are one pass: resolving a ``{key}`` reference (through subtree scopes
+and BT.CPP remappings) is how a malformed one is found, and coercing a literal is how a
+mistyped one is found. The result, a tree of :class:`ResolvedNode`, is all the builder needs,
+so a tree that validates cannot fail to build for any reason validation could have seen.
+
+Blackboard scopes follow BT.CPP v4: ``{key}`` in the main tree is ``/key``; each SubTree
+instance gets its own scope ``/<instance name>`` in which only the keys its ``SubTree`` node
+remaps (or all keys, with ``_autoremap: true``) reach the parent; ``{@key}`` is always the root.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import py_trees
+from py_trees.ports_utils import sanitize_name_for_blackboard_use
+
+from chaser_bt.tree.control import SubTree
+from chaser_bt.tree.errors import Problem, UnknownNode
+from chaser_bt.tree.model import SUBTREE_ID, Location, NodeSpec, PortArg, TreeDocument
+from chaser_bt.tree.ports import (
+    SAME_AS_PORT,
+    LiteralError,
+    coerce_literal,
+    is_reference_text,
+    parse_reference,
+    type_name,
+)
+from chaser_bt.tree.registry import NodeKind, NodeType, Registry
+
+__all__ = ["ResolvedNode", "Resolution", "resolve_document", "SUBTREE_TYPE"]
+
+#: The node type of a SubTree instance (a pass-through wrapper around the instantiated tree).
+SUBTREE_TYPE = NodeType(SUBTREE_ID, SubTree, NodeKind.DECORATOR)
+
+
+@dataclass
+class ResolvedNode:
+    """A node ready to build: its type, instance name, blackboard scope and port wiring.
+
+    Attributes:
+        remappings: port -> absolute blackboard key (``{key}`` references and default keys).
+        literals: port -> typed value, stored on the blackboard privately for that node.
+        wiring: port -> how a person reads it ("20", "{/alt}"), for display.
+    """
+
+    node_type: NodeType
+    name: str
+    namespace: str
+    location: Location
+    remappings: dict[str, str] = field(default_factory=dict)
+    literals: dict[str, Any] = field(default_factory=dict)
+    wiring: dict[str, str] = field(default_factory=dict)
+    children: list[ResolvedNode] = field(default_factory=list)
+
+
+@dataclass
+class Resolution:
+    """The main tree, resolved, and the mission inputs as absolute keys."""
+
+    main: str | None
+    root: ResolvedNode | None
+    inputs: tuple[str, ...]
+
+
+def resolve_document(document: TreeDocument, registry: Registry) -> tuple[Resolution, list[Problem]]:
+    """Validate every tree of ``document`` and resolve the main one; problems sorted by position."""
+    return _Resolver(document, registry).run()
+
+
+def _show(value: Any) -> str:
+    """A literal as a person reads it: enum members by name, strings quoted."""
+    if isinstance(value, enum.Enum):
+        return value.name
+    return repr(value) if isinstance(value, str) else str(value)
+
+
+@dataclass(frozen=True)
+class _Literal:
+    """A SubTree port given a literal: the subtree's key holds that value."""
+
+    value: Any
+    location: Location
+
+
+_Binding = str | _Literal
+
+
+@dataclass
+class _Scope:
+    namespace: str
+    bindings: dict[str, _Binding] = field(default_factory=dict)
+    parent: _Scope | None = None
+    autoremap: bool = False
+
+    def resolve(self, key: str) -> _Binding:
+        if key.startswith("@"):
+            return "/" + key[1:]
+        if key in self.bindings:
+            return self.bindings[key]
+        if self.autoremap and self.parent is not None:
+            return self.parent.resolve(key)
+        return py_trees.blackboard.Blackboard.absolute_name(self.namespace, key)
+
+
+@dataclass(frozen=True)
+class _Read:
+    key: str
+    location: Location
+    text: str
+
+
+class _Resolver:
+    def __init__(self, document: TreeDocument, registry: Registry) -> None:
+        self.document = document
+        self.registry = registry
+        self.problems: list[Problem] = []
+        self.instantiated: set[str] = set()
+        self.namespaces: set[str] = set()
+        self.writes: set[str] = set()
+        self.reads: list[_Read] = []
+
+    def problem(self, location: Location, message: str) -> None:
+        self.problems.append(Problem(location.file, location.line, location.column, message))
+
+    def file_problem(self, message: str) -> None:
+        self.problems.append(Problem(self.document.source, 1, 1, message))
+
+    # ---- document
+
+    def run(self) -> tuple[Resolution, list[Problem]]:
+        inputs = self.inputs()
+        main = self.main_tree()
+        root = None
+        if main is not None:
+            self.instantiated.add(main)
+            root = self.tree(main, _Scope("/"), (main,))
+            self.check_data_flow(set(inputs))
+        # Trees no instance reaches are still checked, each in a scope of its own.
+        for tree_id in self.document.trees:
+            if tree_id not in self.instantiated:
+                self.instantiated.add(tree_id)
+                self.tree(tree_id, _Scope(self.namespace("/", tree_id)), (tree_id,))
+        problems = sorted(set(self.problems))
+        return Resolution(main, root, tuple(inputs)), problems
+
+    def inputs(self) -> list[str]:
+        keys: list[str] = []
+        for arg in self.document.inputs:
+            try:
+                key = parse_reference("{" + str(arg.value) + "}")
+            except ValueError:
+                self.problem(arg.location, f"input {arg.value!r} is not a blackboard key name")
+                continue
+            absolute = "/" + key.lstrip("@")
+            if key == SAME_AS_PORT:
+                self.problem(arg.location, "an input is a key name, not '='")
+            elif absolute in keys:
+                self.problem(arg.location, f"input '{arg.value}' is listed twice")
+            else:
+                keys.append(absolute)
+        return keys
+
+    def main_tree(self) -> str | None:
+        trees = self.document.trees
+        if not trees:
+            return None
+        if self.document.main is not None:
+            if self.document.main in trees:
+                return self.document.main
+            location = self.document.main_location or Location(self.document.source, 1, 1)
+            self.problem(location, f"main '{self.document.main}' names no tree; trees: {', '.join(trees)}")
+            return None
+        if len(trees) == 1:
+            return next(iter(trees))
+        self.file_problem(f"several trees ({', '.join(trees)}): name the one to execute with 'main'")
+        return None
+
+    def tree(self, tree_id: str, scope: _Scope, stack: tuple[str, ...]) -> ResolvedNode | None:
+        root = self.document.trees[tree_id].root
+        return None if root is None else self.node(root, scope, stack)
+
+    def namespace(self, parent: str, name: str) -> str:
+        """A blackboard scope for a subtree instance, unique among the instances in this tree."""
+        base = py_trees.blackboard.Blackboard.absolute_name(parent, sanitize_name_for_blackboard_use(name))
+        candidate, suffix = base, 2
+        while candidate in self.namespaces:
+            candidate, suffix = f"{base}_{suffix}", suffix + 1
+        self.namespaces.add(candidate)
+        return candidate
+
+    def check_data_flow(self, inputs: set[str]) -> None:
+        """A required port reading a key that nothing writes would wait forever: say so before flight."""
+        written = self.writes | inputs
+        for read in self.reads:
+            if read.key not in written:
+                self.problem(
+                    read.location,
+                    f"{read.text} reads '{read.key}', which no node writes and 'inputs' does not list",
+                )
+
+    # ---- nodes
+
+    def node(self, spec: NodeSpec, scope: _Scope, stack: tuple[str, ...]) -> ResolvedNode | None:
+        if spec.node_id == SUBTREE_ID:
+            return self.subtree(spec, scope, stack)
+        children = [self.node(child, scope, stack) for child in spec.children]
+        try:
+            node_type = self.registry.get(spec.node_id)
+        except UnknownNode as e:
+            self.problem(spec.location, str(e))
+            return None
+        self.check_children(spec, node_type)
+        resolved = ResolvedNode(node_type, spec.display_name, scope.namespace, spec.location)
+        for port, arg in spec.ports.items():
+            self.port(spec, node_type, port, arg, scope, resolved)
+        self.unwired_ports(spec, node_type, scope, resolved)
+        self.check_values(spec, node_type, resolved)
+        resolved.children = [child for child in children if child is not None]
+        return resolved
+
+    def check_children(self, spec: NodeSpec, node_type: NodeType) -> None:
+        if spec.unreadable_children:
+            return
+        count = len(spec.children)
+        if node_type.kind is NodeKind.CONTROL and count == 0:
+            self.problem(spec.location, f"{spec.node_id} is a composite: give it 'children: [...]'")
+        elif node_type.kind is NodeKind.DECORATOR and count != 1:
+            self.problem(spec.location, f"{spec.node_id} is a decorator: give it exactly one 'child', got {count}")
+        elif node_type.kind.is_leaf and count:
+            self.problem(spec.location, f"{spec.node_id} is a leaf ({node_type.kind.value}): it takes no children")
+
+    def port(
+        self, spec: NodeSpec, node_type: NodeType, port: str, arg: PortArg, scope: _Scope, resolved: ResolvedNode
+    ) -> None:
+        declaration = node_type.port(port)
+        if declaration is None:
+            names = node_type.port_names()
+            listed = f"its ports: {', '.join(names)}" if names else "it has no ports"
+            self.problem(arg.location, f"{spec.node_id} has no port '{port}'; {listed}")
+            return
+        is_output = port in node_type.output_ports
+        if not is_reference_text(arg.value):
+            if is_output:
+                self.problem(
+                    arg.value_at, f"output port '{port}' of {spec.node_id} takes a {{key}} reference, got {arg.value!r}"
+                )
+                return
+            self.literal(spec, port, declaration, arg.value, arg.value_at, resolved)
+            return
+        try:
+            key = parse_reference(arg.value)
+        except ValueError as e:
+            self.problem(arg.value_at, f"port '{port}' of {spec.node_id}: {e}")
+            return
+        binding = scope.resolve(port if key == SAME_AS_PORT else key)
+        if isinstance(binding, _Literal):
+            if is_output:
+                self.problem(
+                    arg.value_at,
+                    f"output port '{port}' of {spec.node_id} is wired to {arg.value}, "
+                    "which its SubTree sets to a literal",
+                )
+                return
+            self.literal(spec, port, declaration, binding.value, binding.location, resolved)
+            return
+        resolved.remappings[port] = binding
+        resolved.wiring[port] = "{" + binding + "}"
+        if is_output:
+            self.writes.add(binding)
+        elif declaration.required and not declaration.has_default:
+            self.reads.append(_Read(binding, arg.value_at, f"port '{port}' of {spec.node_id}"))
+
+    def literal(
+        self, spec: NodeSpec, port: str, declaration: Any, value: Any, location: Location, resolved: ResolvedNode
+    ) -> None:
+        try:
+            resolved.literals[port] = coerce_literal(value, declaration.data_type)
+        except LiteralError as e:
+            self.problem(location, f"port '{port}' of {spec.node_id}: {e}")
+            return
+        resolved.wiring[port] = _show(resolved.literals[port])
+
+    def unwired_ports(self, spec: NodeSpec, node_type: NodeType, scope: _Scope, resolved: ResolvedNode) -> None:
+        for port in node_type.port_names():
+            if port in spec.ports:
+                continue
+            declaration = node_type.port(port)
+            default_key = getattr(declaration, "default_key", None)
+            if default_key is not None:
+                key = py_trees.blackboard.Blackboard.absolute_name(scope.namespace, default_key)
+                resolved.remappings[port] = key
+                resolved.wiring[port] = "{" + key + "}"
+                if port in node_type.output_ports:
+                    self.writes.add(key)
+            elif declaration.required and not declaration.has_default:
+                self.problem(
+                    spec.location,
+                    f"{spec.node_id} is missing required port '{port}' ({type_name(declaration.data_type)}: "
+                    f"{declaration.description})",
+                )
+
+    def check_values(self, spec: NodeSpec, node_type: NodeType, resolved: ResolvedNode) -> None:
+        check = getattr(node_type.cls, "check_ports", None)
+        if check is None:
+            return
+        known = {
+            port: declaration.default_value
+            for port, declaration in node_type.input_ports.items()
+            if declaration.has_default and port not in resolved.remappings
+        }
+        known.update(resolved.literals)
+        for port, message in check(known, len(spec.children)):
+            arg = spec.ports.get(port)
+            self.problem(arg.value_at if arg else spec.location, f"{spec.node_id}: {message}")
+
+    # ---- subtrees
+
+    def subtree(self, spec: NodeSpec, scope: _Scope, stack: tuple[str, ...]) -> ResolvedNode | None:
+        ref = spec.subtree
+        if ref is None:
+            return None
+        if spec.children:
+            self.problem(spec.location, "SubTree takes no children: it instantiates the tree named by ID")
+        tree = self.document.trees.get(ref.tree_id)
+        if tree is None:
+            trees = ", ".join(self.document.trees) or "none"
+            self.problem(ref.location, f"SubTree ID '{ref.tree_id}' names no tree in this file; trees: {trees}")
+            return None
+        if ref.tree_id in stack:
+            self.problem(ref.location, f"SubTree '{ref.tree_id}' is recursive: {' -> '.join((*stack, ref.tree_id))}")
+            return None
+        self.instantiated.add(ref.tree_id)
+        used = set(self.keys_used(ref.tree_id, set()))
+        bindings: dict[str, _Binding] = {}
+        for port, arg in spec.ports.items():
+            if port not in used:
+                listed = ", ".join(sorted(used)) or "none"
+                self.problem(arg.location, f"SubTree '{ref.tree_id}' uses no key '{port}'; its keys: {listed}")
+            if not is_reference_text(arg.value):
+                bindings[port] = _Literal(arg.value, arg.value_at)
+                continue
+            try:
+                key = parse_reference(arg.value)
+            except ValueError as e:
+                self.problem(arg.value_at, f"SubTree port '{port}': {e}")
+                continue
+            bindings[port] = scope.resolve(port if key == SAME_AS_PORT else key)
+        name = spec.name or ref.tree_id
+        child_scope = _Scope(self.namespace(scope.namespace, name), bindings, scope, ref.autoremap)
+        root = self.tree(ref.tree_id, child_scope, (*stack, ref.tree_id))
+        resolved = ResolvedNode(SUBTREE_TYPE, name, scope.namespace, spec.location)
+        resolved.wiring = {
+            port: (_show(b.value) if isinstance(b, _Literal) else "{" + b + "}") for port, b in bindings.items()
+        }
+        if root is not None:
+            resolved.children = [root]
+        return resolved
+
+    def keys_used(self, tree_id: str, visited: set[str]) -> Iterator[str]:
+        """The scope-local keys a tree references (through autoremapped subtrees too)."""
+        if tree_id in visited or tree_id not in self.document.trees:
+            return
+        visited.add(tree_id)
+        root = self.document.trees[tree_id].root
+        stack = [root] if root is not None else []
+        while stack:
+            node = stack.pop()
+            stack.extend(node.children)
+            for port, arg in node.ports.items():
+                if is_reference_text(arg.value):
+                    try:
+                        key = parse_reference(arg.value)
+                    except ValueError:
+                        continue
+                    if not key.startswith("@"):
+                        yield port if key == SAME_AS_PORT else key
+            if node.subtree is not None and node.subtree.autoremap:
+                yield from self.keys_used(node.subtree.tree_id, visited)
+

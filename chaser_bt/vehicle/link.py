@@ -1,0 +1,659 @@
+"""The MAVLink link to an ArduCopter: telemetry into :class:`VehicleState`, non-blocking commands.
+
+One :class:`VehicleLink` flies the built-in simulator (in-process pipe or UDP/TCP), ArduPilot SITL
+or a real aircraft; only the connection string changes (DESIGN §5). Its rules:
+
+- Nothing blocks except :meth:`VehicleLink.connect` (bounded) and the script helper
+  :meth:`VehicleLink.wait`. :meth:`~VehicleLink.poll` drains what arrived, updates the state,
+  moves commands along (acks, retries, timeouts, readiness waits) and sends what is due.
+- Every timer runs on the injected ``monotonic`` callable, so a rehearsal on the simulator's
+  clock is reproducible and independent of how fast the host runs.
+- It keeps ArduCopter fed the way ArduCopter expects: a GCS HEARTBEAT at 1 Hz (FS_GCS failsafe),
+  SET_MESSAGE_INTERVAL per stream (SITL streams little unless asked), HOME_POSITION asked for with
+  MAV_CMD_REQUEST_MESSAGE until it arrives, and a held RC override resent at 5 Hz (overrides
+  expire after RC_OVERRIDE_TIME, 3 s).
+- A command counts as accepted only when ArduCopter acked it *and*, where telemetry can show it,
+  telemetry shows it (mode in HEARTBEAT.custom_mode, armed flag): ArduPilot acks first.
+"""
+
+from __future__ import annotations
+
+import inspect
+import logging
+import math
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from chaser_bt.geo import GeoPoint, LocalFrame, enu_to_ned, enu_yaw_to_heading, wrap_pi
+from chaser_bt.vehicle.commands import Command, CommandTracker, Setpoint
+from chaser_bt.vehicle.connection import PipeConnection, mavutil, open_connection
+from chaser_bt.vehicle.errors import CommandRejected, LinkTimeout, VehicleError, VehicleQuiet, VehicleUnreachable
+from chaser_bt.vehicle.pipe import PipeEnd
+from chaser_bt.vehicle.state import VehicleState, statustext_str, update_state
+
+__all__ = ["LinkConfig", "LinkCounters", "VehicleLink", "DEFAULT_STREAM_RATES_HZ", "COPTER_MODES"]
+
+log = logging.getLogger(__name__)
+mavlink = mavutil.mavlink  # the ardupilotmega dialect, MAVLink 2 (set up in connection.py)
+
+DEFAULT_STREAM_RATES_HZ: Mapping[str, float] = MappingProxyType({
+    "GLOBAL_POSITION_INT": 10.0,
+    "ATTITUDE": 10.0,
+    "VFR_HUD": 4.0,
+    "RC_CHANNELS": 5.0,
+    "SYS_STATUS": 2.0,
+    "GPS_RAW_INT": 2.0,
+    "SYSTEM_TIME": 2.0,
+    "EXTENDED_SYS_STATE": 2.0,
+    "EKF_STATUS_REPORT": 1.0,
+    "BATTERY_STATUS": 1.0,
+    "HOME_POSITION": 0.5,
+})
+COPTER_MODES: Mapping[str, int] = MappingProxyType({name: num for num, name in mavutil.mode_mapping_acm.items()})
+
+# Modes in which the pilot's sticks (or our RC override) fly the copter. Entering any other mode
+# releases a held override, so a pilot who switches to LOITER, or a failsafe RTL, is not fought.
+_STICK_MODES = frozenset({"STABILIZE", "ACRO", "ALT_HOLD", "POSHOLD", "SPORT", "DRIFT", "FLOWHOLD"})
+_HOVER_BY_STICKS = frozenset({"STABILIZE", "ALT_HOLD"})
+# Modes ArduCopter enters only with a position estimate (mode.h requires_GPS()).
+_POSITION_MODES = frozenset({"AUTO", "GUIDED", "LOITER", "RTL", "CIRCLE", "POSHOLD", "BRAKE", "SMART_RTL",
+                             "FOLLOW", "ZIGZAG", "AUTO_RTL"})
+_FORCE_DISARM_MAGIC = 21196  # ArduPilot: MAV_CMD_COMPONENT_ARM_DISARM param2 to bypass checks
+_RC_CENTRE = 1500
+_RC_LEAVE = 65535  # UINT16_MAX: leave this channel alone
+_RC_RELEASE = 0  # hand this channel back to the pilot's radio
+_STREAM_CHECK_S = 5.0  # how often missing streams are asked for again
+_HOME_REQUEST_S = 2.0  # how often HOME_POSITION is asked for until it arrives
+_MAX_MESSAGES_PER_POLL = 5000  # a flooding peer cannot keep poll() from returning
+# Commands whose acks nobody waits for: stream set-up sent by the link itself.
+_SELF_SERVICE_CMDS = frozenset({mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink.MAV_CMD_REQUEST_MESSAGE})
+_POSITION_ONLY = (
+    mavlink.POSITION_TARGET_TYPEMASK_VX_IGNORE | mavlink.POSITION_TARGET_TYPEMASK_VY_IGNORE
+    | mavlink.POSITION_TARGET_TYPEMASK_VZ_IGNORE | mavlink.POSITION_TARGET_TYPEMASK_AX_IGNORE
+    | mavlink.POSITION_TARGET_TYPEMASK_AY_IGNORE | mavlink.POSITION_TARGET_TYPEMASK_AZ_IGNORE
+    | mavlink.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
+)
+_VELOCITY_ONLY = (
+    mavlink.POSITION_TARGET_TYPEMASK_X_IGNORE | mavlink.POSITION_TARGET_TYPEMASK_Y_IGNORE
+    | mavlink.POSITION_TARGET_TYPEMASK_Z_IGNORE | mavlink.POSITION_TARGET_TYPEMASK_AX_IGNORE
+    | mavlink.POSITION_TARGET_TYPEMASK_AY_IGNORE | mavlink.POSITION_TARGET_TYPEMASK_AZ_IGNORE
+    | mavlink.POSITION_TARGET_TYPEMASK_YAW_IGNORE
+)
+
+
+@dataclass(frozen=True)
+class LinkConfig:
+    """How the link identifies itself, what it asks for, and how patient it is (seconds, Hz)."""
+
+    gcs_sysid: int = 255  # ArduPilot obeys RC overrides only from MAV_GCS_SYSID (255 by default)
+    gcs_compid: int = 190  # MAV_COMP_ID_MISSIONPLANNER, what ground stations use
+    target_sysid: int | None = None  # None: the first autopilot heard
+    heartbeat_period_s: float = 1.0
+    ack_timeout_s: float = 1.5
+    retries: int = 3
+    quiet_timeout_s: float = 5.0
+    connect_timeout_s: float = 10.0
+    ready_timeout_s: float = 120.0  # arm waits this long for ArduCopter to become ready (~40 s after boot)
+    confirm_timeout_s: float = 3.0  # an acked command has this long to show in telemetry (1 Hz heartbeat)
+    rc_resend_hz: float = 5.0  # held RC overrides are resent this often (they expire after 3 s)
+    stream_rates_hz: Mapping[str, float] = field(default_factory=lambda: DEFAULT_STREAM_RATES_HZ)
+    origin: GeoPoint | None = None  # ENU origin; None: the vehicle's home
+
+    def __post_init__(self) -> None:
+        for name in ("gcs_sysid", "gcs_compid"):
+            if not 1 <= getattr(self, name) <= 255:
+                raise ValueError(f"LinkConfig.{name} = {getattr(self, name)}: expected 1..255")
+        if self.target_sysid is not None and not 1 <= self.target_sysid <= 255:
+            raise ValueError(f"LinkConfig.target_sysid = {self.target_sysid}: expected 1..255 or None")
+        for name in ("heartbeat_period_s", "ack_timeout_s", "quiet_timeout_s", "connect_timeout_s",
+                     "ready_timeout_s", "confirm_timeout_s", "rc_resend_hz"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"LinkConfig.{name} = {getattr(self, name)}: expected > 0")
+        if self.retries < 0:
+            raise ValueError(f"LinkConfig.retries = {self.retries}: expected >= 0")
+        for name, rate in self.stream_rates_hz.items():
+            if not hasattr(mavlink, f"MAVLINK_MSG_ID_{name}"):
+                raise ValueError(f"LinkConfig.stream_rates_hz: {name!r} is not a MAVLink message name")
+            if not rate >= 0:
+                raise ValueError(f"LinkConfig.stream_rates_hz[{name!r}] = {rate}: expected >= 0 (0 = off)")
+
+
+@dataclass
+class LinkCounters:
+    """Diagnostics: what arrived, what was dropped, what had to be repeated."""
+
+    received: Counter[str] = field(default_factory=Counter)  # valid messages by type, any sender
+    bad_packets: int = 0  # garbled bytes / bad CRC (pymavlink BAD_DATA)
+    other_systems: int = 0  # messages from systems other than our vehicle (ignored)
+    unmatched_acks: int = 0  # COMMAND_ACKs for nothing we were waiting on
+    commands_retried: int = 0  # command retransmissions after an ack timeout
+    read_errors: int = 0  # socket errors while reading (connection reset, ...)
+
+
+class VehicleLink:
+    """A ground station's side of the MAVLink link to one ArduCopter."""
+
+    def __init__(
+        self, conn: mavutil.mavfile, config: LinkConfig = LinkConfig(), *, monotonic: Callable[[], float] = time.monotonic,
+    ) -> None:
+        """Wrap an open pymavlink ``mavfile``; nothing is sent until the first :meth:`poll`."""
+        self.conn = conn
+        self.config = config
+        self._now = monotonic
+        conn.source_system, conn.source_component = config.gcs_sysid, config.gcs_compid
+        conn.mav.srcSystem, conn.mav.srcComponent = config.gcs_sysid, config.gcs_compid
+        self.state = VehicleState()
+        self.frame: LocalFrame | None = LocalFrame(config.origin) if config.origin is not None else None
+        self.params: dict[str, float] = {}
+        self.counters = LinkCounters()
+        self.last_setpoint: Setpoint | None = None
+        self.target_sysid: int | None = config.target_sysid
+        self.target_compid: int | None = None
+        self._commands = CommandTracker(
+            ack_timeout_s=config.ack_timeout_s, retries=config.retries, confirm_timeout_s=config.confirm_timeout_s,
+        )
+        t = monotonic()
+        self._opened_at = t
+        self._last_rx_t = t
+        self._last_rx_type = ""
+        self._next_heartbeat = t
+        self._streams_checked_at: float | None = None
+        self._stream_rx: dict[str, float] = {}
+        self._next_home_request = t
+        self._rc_hold: tuple[int, int, int, int] | None = None
+        self._next_rc = t
+
+    # ----------------------------------------------------------------------------- opening
+    @classmethod
+    def connect(
+        cls, url: str, config: LinkConfig = LinkConfig(), *, monotonic: Callable[[], float] = time.monotonic,
+    ) -> VehicleLink:
+        """Open ``url`` and block until the first autopilot HEARTBEAT (then streams are requested).
+
+        Raises:
+            VehicleUnreachable: nothing answered within ``config.connect_timeout_s``.
+            ValueError: ``url`` is not a connection string (see :mod:`chaser_bt.vehicle.connection`).
+        """
+        timeout = config.connect_timeout_s
+        conn = open_connection(url, source_system=config.gcs_sysid, source_component=config.gcs_compid,
+                               timeout_s=timeout, monotonic=monotonic)
+        try:
+            link = cls(conn, config, monotonic=monotonic)
+            # The iteration bound keeps this finite even with a clock that does not advance.
+            for _ in range(math.ceil(timeout / 0.05) * 20):
+                link._poll(check_quiet=False)
+                if link.target_sysid is not None and link.target_compid is not None:
+                    log.info("connected to vehicle %d on %s", link.target_sysid, url)
+                    return link
+                if monotonic() - link._opened_at >= timeout:
+                    break
+                conn.select(0.05)
+        except BaseException:
+            conn.close()
+            raise
+        conn.close()
+        heard = ", ".join(f"{k} x{n}" for k, n in link.counters.received.most_common(5)) or "nothing"
+        raise VehicleUnreachable(f"{url}: no autopilot HEARTBEAT within {timeout:g} s (heard: {heard})")
+
+    @classmethod
+    def over_pipe(cls, end: PipeEnd, config: LinkConfig = LinkConfig(), *, monotonic: Callable[[], float]) -> VehicleLink:
+        """A link over an in-memory pipe end (rehearsals); never blocks."""
+        conn = PipeConnection(end, source_system=config.gcs_sysid, source_component=config.gcs_compid)
+        return cls(conn, config, monotonic=monotonic)
+
+    def close(self) -> None:
+        """Hand the sticks back if we held them, then close the connection."""
+        if self._rc_hold is not None:
+            self.release_rc()
+        self.conn.close()
+
+    # ----------------------------------------------------------------------------- polling
+    def poll(self) -> int:
+        """Drain input, update state, advance commands, send what is due; never blocks.
+
+        Returns the number of valid messages handled.
+
+        Raises:
+            VehicleQuiet: nothing from the vehicle for ``quiet_timeout_s`` (raised on every poll
+                until it speaks again; heartbeats and retries are still sent first).
+        """
+        return self._poll(check_quiet=True)
+
+    def _poll(self, *, check_quiet: bool) -> int:
+        now = self._now()
+        handled = 0
+        for _ in range(_MAX_MESSAGES_PER_POLL):
+            try:
+                msg = self.conn.recv_msg()
+            except OSError as e:  # a reset TCP connection; silence will be reported as quiet
+                self.counters.read_errors += 1
+                log.debug("read error on %s: %s", self.conn.address, e)
+                break
+            if msg is None:
+                break
+            handled += self._handle(msg, now)
+        self._commands.tick(now)
+        self.counters.commands_retried = self._commands.retried
+        self._send_due(now)
+        if check_quiet:
+            self._check_quiet(now)
+        return handled
+
+    def wait(
+        self, cmd_or_predicate: Command | Callable[..., bool], timeout_s: float, *,
+        pump: Callable[[], None] | None = None,
+    ) -> Command | bool:
+        """Block until a command is done or a condition holds (scripts and tests, never behaviours).
+
+        Loops ``pump()`` + :meth:`poll`; ``pump`` defaults to waiting briefly for input (pass the
+        simulator's ``step`` to run in lock-step). A predicate takes the :class:`VehicleState`,
+        or nothing. Returns the accepted command, or True.
+
+        Raises:
+            CommandRejected: the command finished FAILED or TIMED_OUT.
+            LinkTimeout: not done within ``timeout_s`` on the link's clock.
+        """
+        if isinstance(cmd_or_predicate, Command):
+            cmd = cmd_or_predicate
+            done: Callable[[], bool] = lambda: cmd.done  # noqa: E731
+            what = cmd.name
+        else:
+            predicate = cmd_or_predicate
+            takes_state = bool(inspect.signature(predicate).parameters)
+            done = (lambda: bool(predicate(self.state))) if takes_state else (lambda: bool(predicate()))
+            what = getattr(predicate, "__name__", "condition")
+        pump = pump if pump is not None else (lambda: self.conn.select(0.01))
+        deadline = self._now() + timeout_s
+        while True:
+            self.poll()
+            if done():
+                break
+            if self._now() >= deadline:
+                raise LinkTimeout(f"{what}: not done within {timeout_s:g} s")
+            pump()
+        if isinstance(cmd_or_predicate, Command):
+            if not cmd_or_predicate.ok:
+                c = cmd_or_predicate
+                raise CommandRejected(f"{c.name} {c.status.value}: {c.reason}")
+            return cmd_or_predicate
+        return True
+
+    @property
+    def in_flight(self) -> list[Command]:
+        """Commands not finished yet, oldest first."""
+        return self._commands.in_flight
+
+    # ----------------------------------------------------------------------------- commands
+    def arm(self) -> Command:
+        """Arm; waits (WAITING) up to ``ready_timeout_s`` for :attr:`VehicleState.ready_to_arm`.
+
+        Take off promptly once armed: ArduCopter disarms itself after DISARM_DELAY (10 s) on the ground.
+        """
+        if self.state.armed:
+            return self._commands.accept_now(Command("arm"))
+        return self._submit("arm", mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1,), blocker=self._not_ready_to_arm,
+                            wait_s=self.config.ready_timeout_s, confirm=lambda: self.state.armed)
+
+    def disarm(self, force: bool = False) -> Command:
+        """Disarm (``force`` also in flight: the motors stop)."""
+        if self.target_sysid is not None and self.state.mode and not self.state.armed:
+            return self._commands.accept_now(Command("disarm"))
+        return self._submit("disarm", mavlink.MAV_CMD_COMPONENT_ARM_DISARM,
+                            (0, _FORCE_DISARM_MAGIC if force else 0), confirm=lambda: not self.state.armed)
+
+    def set_mode(self, name: str) -> Command:
+        """Switch flight mode; accepted once acked and shown in HEARTBEAT.custom_mode.
+
+        Before the vehicle is armed, a mode that needs a position estimate (GUIDED, LOITER, RTL...)
+        waits (WAITING, up to ``ready_timeout_s``) for a 3-D fix and the EKF's position, as
+        :meth:`arm` does; in the air it is sent at once. Switching to ALT_HOLD first holds throttle at 1500 by RC override (unless sticks are held
+        already): ALT_HOLD reads the throttle stick as a climb rate, and a low stick sinks.
+
+        Raises:
+            ValueError: ``name`` is not an ArduCopter mode.
+        """
+        if name not in COPTER_MODES:
+            raise ValueError(f"unknown ArduCopter mode {name!r}; known: {', '.join(COPTER_MODES)}")
+        cmd_name = f"set_mode({name})"
+        if self.state.mode == name:
+            return self._commands.accept_now(Command(cmd_name))
+        if name == "ALT_HOLD" and self._rc_hold is None:
+            self.rc_override(throttle=_RC_CENTRE)
+        params = (mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, COPTER_MODES[name])
+        if name in _POSITION_MODES and not self.state.armed:
+            # On the ground after boot ArduCopter refuses these until the EKF has a position:
+            # wait for it as arm() does, instead of failing the first request.
+            return self._submit(cmd_name, mavlink.MAV_CMD_DO_SET_MODE, params, blocker=self._no_position(name),
+                                wait_s=self.config.ready_timeout_s, confirm=lambda: self.state.mode == name)
+        return self._submit(cmd_name, mavlink.MAV_CMD_DO_SET_MODE, params, confirm=lambda: self.state.mode == name)
+
+    def takeoff(self, alt_rel_m: float) -> Command:
+        """GUIDED take-off to ``alt_rel_m`` above home (ArduCopter: armed, GUIDED, landed)."""
+        if not alt_rel_m > 0:
+            raise ValueError(f"takeoff altitude {alt_rel_m} m: expected > 0 (above home)")
+        return self._submit(f"takeoff({alt_rel_m:g} m)", mavlink.MAV_CMD_NAV_TAKEOFF, (0, 0, 0, 0, 0, 0, alt_rel_m))
+
+    def rtl(self) -> Command:
+        """Return to launch (MAV_CMD_NAV_RETURN_TO_LAUNCH); accepted once HEARTBEAT shows RTL."""
+        return self._mode_command("rtl", mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, "RTL")
+
+    def land(self) -> Command:
+        """Land here (MAV_CMD_NAV_LAND); accepted once HEARTBEAT shows LAND."""
+        return self._mode_command("land", mavlink.MAV_CMD_NAV_LAND, "LAND")
+
+    def set_speed(self, speed_mps: float) -> Command:
+        """Horizontal speed for GUIDED legs (MAV_CMD_DO_CHANGE_SPEED, ground speed; throttle unchanged)."""
+        if not speed_mps > 0:
+            raise ValueError(f"speed {speed_mps} m/s: expected > 0")
+        return self._submit(f"set_speed({speed_mps:g} m/s)", mavlink.MAV_CMD_DO_CHANGE_SPEED, (1, speed_mps, -1))
+
+    def set_param(self, name: str, value: float) -> Command:
+        """Set a parameter; accepted when PARAM_VALUE echoes the value (as float32)."""
+        _check_param_name(name)
+        want = np.float32(value)
+
+        def send(attempt: int) -> None:
+            self.conn.mav.param_set_send(self.target_sysid, self.target_compid, name.encode(), float(value),
+                                         mavlink.MAV_PARAM_TYPE_REAL32)
+
+        return self._commands.submit(
+            Command(f"set_param({name})"), ("param_set", name), send, self._now(),
+            blocker=self._vehicle_unknown, wait_s=self._answer_budget_s(), matches=lambda v: np.float32(v) == want,
+        )
+
+    def request_param(self, name: str) -> Command:
+        """Read a parameter into :attr:`params`; accepted when its PARAM_VALUE arrives."""
+        _check_param_name(name)
+        key = ("param_get", name)
+        pending = self._commands.find(key)
+        if pending is not None:
+            return pending
+
+        def send(attempt: int) -> None:
+            self.conn.mav.param_request_read_send(self.target_sysid, self.target_compid, name.encode(), -1)
+
+        return self._commands.submit(Command(f"request_param({name})"), key, send, self._now(),
+                                     blocker=self._vehicle_unknown, wait_s=self._answer_budget_s())
+
+    # ----------------------------------------------------------------------------- set-points
+    def goto_enu(self, pos_enu: Sequence[float] | np.ndarray, yaw_enu_rad: float | None = None) -> None:
+        """GUIDED: fly to ``pos_enu`` in :attr:`frame` and hold there (no ack; holds until replaced)."""
+        if self.frame is None:
+            raise VehicleError("no ENU frame yet: the vehicle's HOME_POSITION has not arrived (or set LinkConfig.origin)")
+        p = self.frame.to_geodetic(pos_enu)
+        if self.state.home is not None:
+            self._send_position(p.lat_deg, p.lon_deg, p.alt_m - self.state.home.alt_m, yaw_enu_rad, relative=True)
+        else:
+            self._send_position(p.lat_deg, p.lon_deg, p.alt_m, yaw_enu_rad, relative=False)
+
+    def goto_global(self, point: GeoPoint, alt_rel_m: float, yaw_enu_rad: float | None = None) -> None:
+        """GUIDED: fly to ``point``'s latitude/longitude at ``alt_rel_m`` above home, and hold."""
+        self._send_position(point.lat_deg, point.lon_deg, alt_rel_m, yaw_enu_rad, relative=True)
+
+    def velocity_enu(self, vel_enu: Sequence[float] | np.ndarray, yaw_rate: float | None = None) -> None:
+        """GUIDED: fly at ``vel_enu`` m/s (``yaw_rate`` rad/s counter-clockwise); resend < 3 s or it stops."""
+        self._require_vehicle()
+        vn, ve, vd = enu_to_ned(vel_enu)
+        mask = _VELOCITY_ONLY | (mavlink.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE if yaw_rate is None else 0)
+        rate_ned = 0.0 if yaw_rate is None else -yaw_rate  # NED yaw rate turns clockwise seen from above
+        self.conn.mav.set_position_target_local_ned_send(
+            self._time_boot_ms(), self.target_sysid, self.target_compid, mavlink.MAV_FRAME_LOCAL_NED, mask,
+            0, 0, 0, vn, ve, vd, 0, 0, 0, 0, rate_ned,
+        )
+        rate = math.nan if yaw_rate is None else float(yaw_rate)
+        self.last_setpoint = Setpoint("velocity", self._now(), (float(vel_enu[0]), float(vel_enu[1]), float(vel_enu[2]), rate))
+
+    def rc_override(self, roll: int = _RC_LEAVE, pitch: int = _RC_LEAVE, throttle: int = _RC_LEAVE,
+                    yaw: int = _RC_LEAVE) -> None:
+        """Override sticks 1-4 (PWM; 65535 = leave alone, 0 = give back to the radio); held and resent
+        at ``rc_resend_hz`` until :meth:`release_rc` or a switch to a mode the autopilot flies itself."""
+        channels = (roll, pitch, throttle, yaw)
+        for ch, v in zip(("roll", "pitch", "throttle", "yaw"), channels):
+            if v not in (_RC_LEAVE, _RC_RELEASE) and not 800 <= v <= 2200:
+                raise ValueError(f"rc_override {ch} = {v}: expected PWM 800..2200, 65535 (leave alone) or 0 (release)")
+        self._require_vehicle()
+        self._rc_hold = tuple(int(v) for v in channels)  # type: ignore[assignment]
+        now = self._now()
+        self._send_rc(self._rc_hold)
+        self._next_rc = now + 1.0 / self.config.rc_resend_hz
+        self.last_setpoint = Setpoint("rc_override", now, tuple(float(v) for v in channels))
+
+    def release_rc(self) -> None:
+        """Stop overriding: every channel back to the pilot's radio (all fields 0)."""
+        self._rc_hold = None
+        if self.target_sysid is None:
+            return
+        self._send_rc((_RC_RELEASE,) * 4, rest=_RC_RELEASE)
+        self.last_setpoint = Setpoint("rc_release", self._now())
+
+    def hover(self) -> None:
+        """The safe "stop moving" for the current mode (DESIGN §3: a behaviour's exit command).
+
+        GUIDED: hold the current position (zero velocity if it is not known yet); STABILIZE/ALT_HOLD:
+        centred sticks; LOITER, BRAKE, RTL, LAND and the rest already fly themselves: nothing.
+        Disarmed: nothing either; a centred-throttle override left on a vehicle on the ground would
+        wait for whoever arms it next.
+        """
+        s = self.state
+        if not s.armed:
+            return
+        if s.mode == "GUIDED":
+            if self.frame is not None and np.all(np.isfinite(s.position_enu)):
+                self.goto_enu(s.position_enu, s.yaw_enu_rad if math.isfinite(s.yaw_enu_rad) else None)
+            else:
+                self.velocity_enu((0.0, 0.0, 0.0))
+        elif s.mode in _HOVER_BY_STICKS:
+            self.rc_override(_RC_CENTRE, _RC_CENTRE, _RC_CENTRE, _RC_CENTRE)
+
+    # ----------------------------------------------------------------------------- internals
+    def _handle(self, msg: Any, now: float) -> int:
+        mtype = msg.get_type()
+        if mtype == "BAD_DATA":
+            self.counters.bad_packets += 1
+            return 0
+        self.counters.received[mtype] += 1
+        src, comp = msg.get_srcSystem(), msg.get_srcComponent()
+        if self.target_compid is None:
+            if not (mtype == "HEARTBEAT" and _is_autopilot(msg) and self.target_sysid in (None, src)):
+                self.counters.other_systems += 1
+                return 1
+            self.target_sysid, self.target_compid = src, comp
+            log.info("vehicle is system %d component %d", src, comp)
+        if src != self.target_sysid:
+            self.counters.other_systems += 1
+            return 1
+        if mtype == "STATUSTEXT":  # any component of the vehicle may explain itself
+            self._on_statustext(msg, now)
+            return 1
+        if comp != self.target_compid:
+            return 1
+        self._last_rx_t, self._last_rx_type = now, mtype
+        self._stream_rx[mtype] = now
+        if mtype == "COMMAND_ACK":
+            self._on_ack(msg, now)
+        elif mtype == "PARAM_VALUE":
+            name = _param_id(msg)
+            self.params[name] = float(msg.param_value)
+            self._commands.on_param_value(name, float(msg.param_value), now)
+        else:
+            previous_mode = self.state.mode
+            update_state(self.state, msg, self.frame)
+            if mtype == "HEARTBEAT" and self.state.mode != previous_mode:
+                self._on_mode_change(previous_mode)
+            elif mtype == "HOME_POSITION" and self.frame is None:
+                self.frame = LocalFrame(self.state.home)
+                log.info("ENU frame origin = home %s", self.state.home)
+        return 1
+
+    def _on_statustext(self, msg: Any, now: float) -> None:
+        update_state(self.state, msg, self.frame)
+        text = statustext_str(msg)
+        level = logging.WARNING if msg.severity <= mavlink.MAV_SEVERITY_ERROR else logging.INFO
+        log.log(level, "vehicle: %s", text)
+        self._commands.on_statustext(int(msg.severity), text, now)
+
+    def _on_ack(self, msg: Any, now: float) -> None:
+        if msg.target_system not in (0, self.config.gcs_sysid) or msg.command in _SELF_SERVICE_CMDS:
+            return
+        if not self._commands.on_ack(msg.command, msg.result, now):
+            self.counters.unmatched_acks += 1
+
+    def _on_mode_change(self, previous: str) -> None:
+        log.info("mode %s -> %s", previous or "?", self.state.mode)
+        if self._rc_hold is not None and self.state.mode not in _STICK_MODES:
+            log.info("%s flies itself: releasing the RC override", self.state.mode)
+            self.release_rc()
+
+    def _send_due(self, now: float) -> None:
+        if _due(now, self._next_heartbeat):
+            self.conn.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                                         mavlink.MAV_STATE_ACTIVE)
+            self._next_heartbeat = _next_slot(self._next_heartbeat, self.config.heartbeat_period_s, now)
+        if self.target_compid is None:
+            return
+        if self._streams_checked_at is None or _due(now, self._streams_checked_at + _STREAM_CHECK_S):
+            self._request_streams(now)
+        if self.state.home is None and _due(now, self._next_home_request):
+            self._send_command_long(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_HOME_POSITION)
+            self._next_home_request = now + _HOME_REQUEST_S
+        if self._rc_hold is not None and _due(now, self._next_rc):
+            self._send_rc(self._rc_hold)
+            self._next_rc = _next_slot(self._next_rc, 1.0 / self.config.rc_resend_hz, now)
+
+    def _request_streams(self, now: float) -> None:
+        """Ask for every configured stream the first time, then again for those not arriving."""
+        first = self._streams_checked_at is None
+        for name, rate in self.config.stream_rates_hz.items():
+            if rate > 0 and not first:
+                last = self._stream_rx.get(name)
+                if last is not None and now - last <= max(3.0 / rate, _STREAM_CHECK_S):
+                    continue
+                log.debug("stream %s missing, asking again", name)
+            elif rate <= 0 and not first:
+                continue
+            interval_us = 1e6 / rate if rate > 0 else -1
+            self._send_command_long(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
+                                    getattr(mavlink, f"MAVLINK_MSG_ID_{name}"), interval_us)
+        self._streams_checked_at = now
+
+    def _check_quiet(self, now: float) -> None:
+        silent = now - self._last_rx_t
+        if silent <= self.config.quiet_timeout_s:
+            return
+        if not self._last_rx_type:
+            raise VehicleQuiet(f"no MAVLink from an autopilot in the {silent:.1f} s since the link opened "
+                               f"(quiet_timeout_s = {self.config.quiet_timeout_s:g})")
+        raise VehicleQuiet(f"vehicle {self.target_sysid} quiet for {silent:.1f} s: last heard {self._last_rx_type} "
+                           f"at vehicle time {self.state.t_boot_s:.1f} s (quiet_timeout_s = "
+                           f"{self.config.quiet_timeout_s:g})")
+
+    def _submit(self, name: str, command_id: int, params: Sequence[float], *,
+                blocker: Callable[[], str | None] | None = None, wait_s: float | None = None,
+                confirm: Callable[[], bool] | None = None) -> Command:
+        p = (tuple(float(x) for x in params) + (0.0,) * 7)[:7]
+
+        def send(attempt: int) -> None:
+            self.conn.mav.command_long_send(self.target_sysid, self.target_compid, command_id, min(attempt, 255), *p)
+
+        return self._commands.submit(
+            Command(name), ("cmd", command_id), send, self._now(), blocker=blocker or self._vehicle_unknown,
+            wait_s=self._answer_budget_s() if wait_s is None else wait_s, confirm=confirm,
+        )
+
+    def _mode_command(self, name: str, command_id: int, mode: str) -> Command:
+        if self.state.mode == mode:
+            return self._commands.accept_now(Command(name))
+        return self._submit(name, command_id, (), confirm=lambda: self.state.mode == mode)
+
+    def _send_command_long(self, command_id: int, *params: float) -> None:
+        p = (tuple(float(x) for x in params) + (0.0,) * 7)[:7]
+        self.conn.mav.command_long_send(self.target_sysid, self.target_compid, command_id, 0, *p)
+
+    def _send_position(self, lat_deg: float, lon_deg: float, alt_m: float, yaw_enu_rad: float | None, *,
+                       relative: bool) -> None:
+        self._require_vehicle()
+        frame = mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT if relative else mavlink.MAV_FRAME_GLOBAL_INT
+        mask = _POSITION_ONLY | (mavlink.POSITION_TARGET_TYPEMASK_YAW_IGNORE if yaw_enu_rad is None else 0)
+        yaw_ned = 0.0 if yaw_enu_rad is None else wrap_pi(enu_yaw_to_heading(yaw_enu_rad))
+        self.conn.mav.set_position_target_global_int_send(
+            self._time_boot_ms(), self.target_sysid, self.target_compid, frame, mask,
+            round(lat_deg * 1e7), round(lon_deg * 1e7), alt_m, 0, 0, 0, 0, 0, 0, yaw_ned, 0,
+        )
+        yaw = math.nan if yaw_enu_rad is None else float(yaw_enu_rad)
+        self.last_setpoint = Setpoint("position", self._now(), (lat_deg, lon_deg, alt_m, yaw))
+
+    def _send_rc(self, sticks: Sequence[int], rest: int = _RC_LEAVE) -> None:
+        # Channels 5-8: 65535 leaves them alone (0 would release); 9-18: 0 means "ignore".
+        self.conn.mav.rc_channels_override_send(self.target_sysid, self.target_compid, *sticks, *(rest,) * 4)
+
+    def _not_ready_to_arm(self) -> str | None:
+        if self.target_compid is None:
+            return "no heartbeat from the vehicle yet"
+        s = self.state
+        missing = []
+        if not s.prearm_ok:
+            missing.append("pre-arm checks failing (SYS_STATUS)")
+        if s.gps_fix_type < 3:
+            missing.append(f"GPS fix type {s.gps_fix_type}, need 3 (3-D)")
+        if not s.ekf_ok:
+            missing.append("EKF has no absolute position (EKF_STATUS_REPORT)")
+        return "not ready to arm: " + ", ".join(missing) if missing else None
+
+    def _no_position(self, mode: str) -> Callable[[], str | None]:
+        def blocker() -> str | None:
+            s = self.state
+            if self.target_compid is None:
+                return "no heartbeat from the vehicle yet"
+            if s.armed or (s.ekf_ok and s.gps_fix_type >= 3):
+                return None
+            return f"{mode} needs a position estimate: GPS fix type {s.gps_fix_type}, EKF position {'ok' if s.ekf_ok else 'not ready'}"
+        return blocker
+
+    def _vehicle_unknown(self) -> str | None:
+        return "no heartbeat from the vehicle yet" if self.target_compid is None else None
+
+    def _require_vehicle(self) -> None:
+        if self.target_compid is None:
+            raise VehicleError("no heartbeat from the vehicle yet: nowhere to send a set-point")
+
+    def _answer_budget_s(self) -> float:
+        return self.config.ack_timeout_s * (self.config.retries + 1)
+
+    def _time_boot_ms(self) -> int:
+        return int((self._now() - self._opened_at) * 1000) & 0xFFFFFFFF
+
+
+def _due(now: float, when: float) -> bool:
+    """``now`` has reached ``when`` (a microsecond of slack absorbs float error in the clock)."""
+    return now >= when - 1e-6
+
+
+def _next_slot(scheduled: float, period: float, now: float) -> float:
+    """The next time on a fixed cadence, so late polls do not stretch the period; after a long
+    pause the cadence restarts from ``now`` instead of sending a burst."""
+    nxt = scheduled + period
+    return nxt if nxt > now else now + period
+
+
+def _is_autopilot(msg: Any) -> bool:
+    """A HEARTBEAT from a flight controller (not a GCS, gimbal, camera, or companion computer)."""
+    return (msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID
+            and msg.type not in (mavlink.MAV_TYPE_GCS, mavlink.MAV_TYPE_GIMBAL, mavlink.MAV_TYPE_ONBOARD_CONTROLLER,
+                                 mavlink.MAV_TYPE_ADSB, mavlink.MAV_TYPE_CAMERA))
+
+
+def _param_id(msg: Any) -> str:
+    pid = msg.param_id
+    if isinstance(pid, (bytes, bytearray)):
+        pid = pid.decode("ascii", "replace")
+    return pid.rstrip("\x00")
+
+
+def _check_param_name(name: str) -> None:
+    if not name or len(name) > 16 or not name.isascii():
+        raise ValueError(f"parameter name {name!r}: expected 1..16 ASCII characters")

@@ -1,0 +1,258 @@
+"""Simulator scenarios: where the field is, the weather, the airframe, the autopilot's parameters,
+how long it takes to boot and which faults strike when. The format is documented, key by key,
+in ``sitl/scenarios/README.md``.
+
+A scenario is loaded from YAML into frozen dataclasses. Every problem is reported as a
+:class:`ScenarioError` naming the file, the key path and what was expected, so a typo in a
+rehearsal's scenario fails before anything flies.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from chaser_bt.geo import GeoPoint
+from sitl.airframe import AirframeParams
+from sitl.params import ParamStore
+from sitl.physics import WindParams
+
+__all__ = ["ScenarioError", "BootParams", "Fault", "FAULT_KINDS", "Scenario", "load_scenario"]
+
+FAULT_KINDS = ("link_loss", "gps_loss", "battery_drop")
+
+# 2026-01-01T00:00:00Z: a fixed boot epoch so SYSTEM_TIME, and with it every run, reproduces.
+DEFAULT_START_UNIX_S = 1767225600.0
+
+
+class ScenarioError(ValueError):
+    """A scenario that cannot be used: the message names file, key path and expectation."""
+
+
+@dataclass(frozen=True)
+class BootParams:
+    """Seconds after boot at which the readiness flags come up (DESIGN §5: ~40 s in SITL).
+
+    Attributes:
+        gps_fix_s: 3-D GPS fix.
+        ekf_ready_s: EKF absolute position estimate.
+        prearm_ok_s: all pre-arm checks pass (SYS_STATUS pre-arm health bit).
+    """
+
+    gps_fix_s: float = 5.0
+    ekf_ready_s: float = 25.0
+    prearm_ok_s: float = 40.0
+
+
+@dataclass(frozen=True)
+class Fault:
+    """A scripted fault: ``kind`` starts at ``at_s`` (sim time) for ``duration_s`` (None = for good).
+
+    Kinds: ``link_loss`` (the MAVLink radio goes silent; applied by the endpoint), ``gps_loss``
+    (no fix, the EKF loses its position), ``battery_drop`` (a failing cell: the pack voltage
+    drops by one cell's worth).
+    """
+
+    at_s: float
+    kind: str
+    duration_s: float | None = None
+
+    def active(self, t: float) -> bool:
+        """Whether the fault is in force at sim time ``t``."""
+        if t < self.at_s:
+            return False
+        return self.duration_s is None or t < self.at_s + self.duration_s
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """Everything the simulator needs to start a run."""
+
+    name: str
+    home: GeoPoint
+    home_heading_deg: float = 0.0
+    wind: WindParams = field(default_factory=WindParams)
+    airframe: AirframeParams = field(default_factory=AirframeParams)
+    params: dict[str, float] = field(default_factory=dict)
+    boot: BootParams = field(default_factory=BootParams)
+    faults: tuple[Fault, ...] = ()
+    time_limit_s: float = 600.0
+    start_unix_s: float = DEFAULT_START_UNIX_S
+
+    def fault_active(self, kind: str, t: float) -> bool:
+        """Whether any fault of ``kind`` is in force at sim time ``t``."""
+        return any(f.kind == kind and f.active(t) for f in self.faults)
+
+    @classmethod
+    def from_dict(cls, d: Any, source: str = "<dict>") -> Scenario:
+        """Validate a parsed YAML document; errors name ``source`` and the key path."""
+        return _Parser(source).scenario(d)
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read a scenario YAML file."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as e:
+        raise ScenarioError(f"{p}: cannot read scenario: {e.strerror}") from e
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        raise ScenarioError(f"{p}: not valid YAML: {e}") from e
+    return Scenario.from_dict(doc, source=str(p))
+
+
+class _Parser:
+    """Walks a scenario document, checking each key against what it should hold."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    def fail(self, path: str, expected: str, got: Any = dataclasses.MISSING) -> ScenarioError:
+        where = f"{self.source}: {path}" if path else self.source
+        tail = "" if got is dataclasses.MISSING else f", got {got!r}"
+        return ScenarioError(f"{where}: expected {expected}{tail}")
+
+    def mapping(self, d: Any, path: str, allowed: tuple[str, ...]) -> Mapping[str, Any]:
+        if d is None:
+            return {}
+        if not isinstance(d, Mapping):
+            raise self.fail(path, "a mapping", d)
+        for key in d:
+            if key not in allowed:
+                at = f"{path}.{key}" if path else str(key)
+                raise self.fail(at, "one of the keys " + ", ".join(allowed) + " (unknown key)")
+        return d
+
+    def number(self, d: Mapping[str, Any], key: str, path: str, default: float | None,
+               minimum: float | None = None) -> float:
+        at = f"{path}.{key}" if path else key
+        if key not in d:
+            if default is None:
+                raise self.fail(at, "a number (required key is missing)")
+            return default
+        v = d[key]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise self.fail(at, "a finite number", v)
+        if minimum is not None and v < minimum:
+            raise self.fail(at, f"a number >= {minimum}", v)
+        return float(v)
+
+    def scenario(self, d: Any) -> Scenario:
+        top = self.mapping(d, "", ("name", "home", "wind", "airframe", "params", "boot",
+                                   "faults", "time_limit_s", "start_unix_s"))
+        if d is None:
+            raise self.fail("", "a scenario mapping (the document is empty)")
+        name = top.get("name", "unnamed")
+        if not isinstance(name, str) or not name:
+            raise self.fail("name", "a non-empty string", name)
+        home, heading = self.home(top.get("home"))
+        return Scenario(
+            name=name,
+            home=home,
+            home_heading_deg=heading,
+            wind=self.wind(top.get("wind")),
+            airframe=self.airframe(top.get("airframe")),
+            params=self.params(top.get("params")),
+            boot=self.boot(top.get("boot")),
+            faults=self.faults(top.get("faults")),
+            time_limit_s=self.number(top, "time_limit_s", "", 600.0, minimum=0.0),
+            start_unix_s=self.number(top, "start_unix_s", "", DEFAULT_START_UNIX_S, minimum=0.0),
+        )
+
+    def home(self, d: Any) -> tuple[GeoPoint, float]:
+        if d is None:
+            raise self.fail("home", "a mapping with lat_deg, lon_deg, alt_m (required key is missing)")
+        m = self.mapping(d, "home", ("lat_deg", "lon_deg", "alt_m", "heading_deg"))
+        lat = self.number(m, "lat_deg", "home", None)
+        lon = self.number(m, "lon_deg", "home", None)
+        if not -90.0 <= lat <= 90.0:
+            raise self.fail("home.lat_deg", "a latitude in [-90, 90]", lat)
+        if not -180.0 <= lon <= 180.0:
+            raise self.fail("home.lon_deg", "a longitude in [-180, 180]", lon)
+        alt = self.number(m, "alt_m", "home", 0.0)
+        heading = self.number(m, "heading_deg", "home", 0.0)
+        return GeoPoint(lat, lon, alt), heading % 360.0
+
+    def wind(self, d: Any) -> WindParams:
+        m = self.mapping(d, "wind", ("speed_mps", "direction_deg", "gust_std_mps", "gust_tau_s"))
+        w = WindParams()
+        return WindParams(
+            speed_mps=self.number(m, "speed_mps", "wind", w.speed_mps, minimum=0.0),
+            direction_deg=self.number(m, "direction_deg", "wind", w.direction_deg),
+            gust_std_mps=self.number(m, "gust_std_mps", "wind", w.gust_std_mps, minimum=0.0),
+            gust_tau_s=self._positive(m, "gust_tau_s", "wind", w.gust_tau_s),
+        )
+
+    def _positive(self, m: Mapping[str, Any], key: str, path: str, default: float) -> float:
+        v = self.number(m, key, path, default)
+        if not v > 0.0:
+            raise self.fail(f"{path}.{key}", "a number > 0", v)
+        return v
+
+    def airframe(self, d: Any) -> AirframeParams:
+        fields = {f.name: f for f in dataclasses.fields(AirframeParams)}
+        m = self.mapping(d, "airframe", tuple(fields))
+        values: dict[str, Any] = {}
+        for key in m:
+            v = self.number(m, key, "airframe", None)
+            if fields[key].type in ("int", int):
+                if v != int(v):
+                    raise self.fail(f"airframe.{key}", "an integer", m[key])
+                v = int(v)
+            values[key] = v
+        try:
+            return AirframeParams(**values)
+        except ValueError as e:
+            raise ScenarioError(f"{self.source}: airframe: {e}") from e
+
+    def params(self, d: Any) -> dict[str, float]:
+        if d is None:
+            return {}
+        if not isinstance(d, Mapping):
+            raise self.fail("params", "a mapping of ArduCopter parameter names to numbers", d)
+        known = ParamStore()
+        out: dict[str, float] = {}
+        for key in d:
+            if not isinstance(key, str) or key not in known:
+                raise self.fail(f"params.{key}", "a known ArduCopter parameter name (see sitl/params.py)")
+            out[key] = self.number(d, key, "params", None)
+        return out
+
+    def boot(self, d: Any) -> BootParams:
+        m = self.mapping(d, "boot", ("gps_fix_s", "ekf_ready_s", "prearm_ok_s"))
+        b = BootParams()
+        gps = self.number(m, "gps_fix_s", "boot", b.gps_fix_s, minimum=0.0)
+        ekf = self.number(m, "ekf_ready_s", "boot", b.ekf_ready_s, minimum=0.0)
+        pre = self.number(m, "prearm_ok_s", "boot", b.prearm_ok_s, minimum=0.0)
+        if ekf < gps:
+            raise self.fail("boot.ekf_ready_s", f"a time >= boot.gps_fix_s ({gps})", ekf)
+        if pre < ekf:
+            raise self.fail("boot.prearm_ok_s", f"a time >= boot.ekf_ready_s ({ekf})", pre)
+        return BootParams(gps, ekf, pre)
+
+    def faults(self, d: Any) -> tuple[Fault, ...]:
+        if d is None:
+            return ()
+        if not isinstance(d, list):
+            raise self.fail("faults", "a list of faults", d)
+        out = []
+        for i, item in enumerate(d):
+            path = f"faults[{i}]"
+            m = self.mapping(item, path, ("at_s", "kind", "duration_s"))
+            if not isinstance(item, Mapping):
+                raise self.fail(path, "a mapping", item)
+            kind = m.get("kind")
+            if kind not in FAULT_KINDS:
+                raise self.fail(f"{path}.kind", "one of " + ", ".join(FAULT_KINDS), kind)
+            at = self.number(m, "at_s", path, None, minimum=0.0)
+            dur = None if m.get("duration_s") is None else self._positive(m, "duration_s", path, 0.0)
+            out.append(Fault(at, kind, dur))
+        return tuple(out)

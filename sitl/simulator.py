@@ -1,0 +1,108 @@
+"""The simulator: one :class:`~sitl.autopilot.Autopilot` behind one ArduCopter MAVLink endpoint, on ports.
+
+A step is what one tick of a real flight controller's loop does: read everything that arrived on
+every port, advance the vehicle by one physics step, send whatever telemetry is due to every port.
+Nothing here reads a clock: time is the step count, so the same scenario and seed give the same
+bytes on the wire, at any speed and in any process (a rehearsal runs it lock-step in-process, the
+real-time server paces it against the wall clock from outside).
+
+Scripted ``link_loss`` faults act here, where the radio is: while one is in force nothing is read
+from or written to any port (bytes sent to the vehicle meanwhile are lost, as on a dead radio).
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Protocol
+
+import numpy as np
+
+from sitl.autopilot import Autopilot
+from sitl.mavlink_endpoint import Channel, MavlinkEndpoint
+from sitl.physics import PHYSICS_DT
+from sitl.scenario import Scenario
+
+__all__ = ["Port", "Simulator"]
+
+log = logging.getLogger(__name__)
+
+
+class Port(Protocol):
+    """A byte link to one client: a :class:`chaser_bt.vehicle.pipe.PipeEnd` or a server socket."""
+
+    def write(self, data: bytes) -> object: ...
+
+    def read(self) -> bytes: ...
+
+
+class Simulator:
+    """Steps the vehicle and serves MAVLink on every attached port.
+
+    Args:
+        scenario: the field, weather, airframe, parameters, boot times and faults.
+        seed: seeds the autopilot's random generator (sensor noise, gusts): same seed, same run.
+        physics_hz: physics rate; default ``1 / sitl.physics.PHYSICS_DT`` (50 Hz).
+    """
+
+    def __init__(self, scenario: Scenario, seed: int, *, physics_hz: float | None = None) -> None:
+        if physics_hz is not None and not physics_hz > 0.0:
+            raise ValueError(f"physics_hz must be > 0, got {physics_hz}")
+        self.scenario = scenario
+        self.dt = PHYSICS_DT if physics_hz is None else 1.0 / physics_hz
+        self.autopilot = Autopilot(scenario, np.random.default_rng(seed))
+        self.endpoint = MavlinkEndpoint(self.autopilot, start_unix_s=scenario.start_unix_s)
+        self._ports: list[tuple[Port, Channel]] = []
+        self._link_override: bool | None = None
+        self._link_faults = tuple(f for f in scenario.faults if f.kind == "link_loss")
+
+    @property
+    def time_s(self) -> float:
+        """Simulated seconds since boot."""
+        return self.autopilot.time_s
+
+    @property
+    def truth(self):
+        """Ground truth for scoring only (never on the wire): the autopilot's ``truth``."""
+        return self.autopilot.truth
+
+    @property
+    def link_up(self) -> bool:
+        """Whether the radio carries bytes now: scripted ``link_loss`` faults, unless overridden."""
+        if self._link_override is not None:
+            return self._link_override
+        t = round(self.autopilot.time_s, 6)  # a float sum of steps; match the ms the wire shows
+        return not any(f.active(t) for f in self._link_faults)
+
+    @link_up.setter
+    def link_up(self, up: bool | None) -> None:
+        """Force the link up or down (tests); ``None`` returns it to the scenario's script."""
+        self._link_override = up
+
+    def attach(self, port: Port) -> None:
+        """Serve MAVLink on ``port`` from the next step on."""
+        self._ports.append((port, self.endpoint.open_channel()))
+
+    def detach(self, port: Port) -> None:
+        """Stop serving ``port`` (a client that went away)."""
+        self._ports = [(p, c) for p, c in self._ports if p is not port]
+
+    def step(self) -> None:
+        """One physics step: ports -> endpoint, autopilot.step(dt), due telemetry -> ports."""
+        endpoint = self.endpoint
+        up = self.link_up
+        for port, channel in self._ports:
+            data = port.read()
+            if up:
+                endpoint.receive(data, channel)
+        self.autopilot.step(self.dt)
+        endpoint.update()
+        out = endpoint.take_output()
+        if out and self.link_up:  # the radio's state at the time the bytes are sent
+            for port, _ in self._ports:
+                port.write(out)
+
+    def run_until(self, t_s: float) -> None:
+        """Step until sim time reaches ``t_s`` (to within half a step)."""
+        limit = t_s - 0.5 * self.dt
+        while self.autopilot.time_s < limit:
+            self.step()

@@ -1,0 +1,43 @@
+"""Conditions read the vehicle state the runner publishes; checked on the ground and in the air."""
+
+from __future__ import annotations
+
+import py_trees
+import pytest
+
+from flight_helpers import fly, take_off
+
+Status = py_trees.common.Status
+
+
+def check(vehicle, body: str) -> Status:
+    status, _ = fly(vehicle, body, timeout_s=2)
+    return status
+
+
+@pytest.fixture
+def on_ground(vehicle):
+    assert vehicle.run_until(lambda: vehicle.link.state.mode != "", 10)
+    return vehicle
+
+
+def test_on_the_ground_nothing_is_armed_or_airborne(on_ground):
+    assert check(on_ground, "Armed") == Status.FAILURE
+    assert check(on_ground, "Airborne") == Status.FAILURE
+    assert check(on_ground, "ModeIs: {mode: GUIDED}") == Status.FAILURE
+    assert check(on_ground, f"ModeIs: {{mode: {on_ground.sim.autopilot.mode}}}") == Status.SUCCESS
+
+
+def test_in_the_air_armed_airborne_guided(vehicle):
+    take_off(vehicle, 10)
+    assert check(vehicle, "Armed") == Status.SUCCESS
+    assert check(vehicle, "Airborne") == Status.SUCCESS
+    assert check(vehicle, "ModeIs: {mode: GUIDED}") == Status.SUCCESS
+    assert check(vehicle, "ModeIs: {mode: RTL}") == Status.FAILURE
+
+
+def test_battery_above_compares_with_reported_remaining(on_ground):
+    assert on_ground.run_until(lambda: on_ground.link.state.battery_remaining_pct > 0, 10)
+    level = on_ground.link.state.battery_remaining_pct
+    assert check(on_ground, f"BatteryAbove: {{percent: {level - 5:.1f}}}") == Status.SUCCESS
+    assert check(on_ground, f"BatteryAbove: {{percent: {min(level + 5, 100.5):.1f}}}") == Status.FAILURE

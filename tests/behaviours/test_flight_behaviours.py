@@ -1,0 +1,108 @@
+"""Each flight behaviour flown against the simulator, judged by the simulator's ground truth."""
+
+from __future__ import annotations
+
+import numpy as np
+import py_trees
+import pytest
+
+from chaser_bt.geo import GeoPoint
+from chaser_bt.vehicle import LinkConfig
+from sitl.rehearsal import InProcessVehicle
+
+from flight_helpers import fly, runner_for, take_off
+
+Status = py_trees.common.Status
+
+
+def horizontal(pos) -> np.ndarray:
+    return np.asarray(pos, dtype=float)[:2]
+
+
+def test_arm_and_takeoff_waits_for_readiness_then_climbs(vehicle, scenario):
+    status, runner = fly(vehicle, "ArmAndTakeoff: {altitude_m: 15}", timeout_s=150)
+    assert status == Status.SUCCESS, runner.tip_message()
+    # The vehicle boots not ready to arm; the link waited for the pre-arm bit instead of failing.
+    assert vehicle.sim.time_s > scenario.boot.prearm_ok_s
+    assert vehicle.sim.truth.pos_enu[2] == pytest.approx(15.0, abs=1.5)
+    assert vehicle.link.state.mode == "GUIDED" and vehicle.link.state.armed
+
+
+def test_arm_and_takeoff_fails_with_a_reason_when_never_ready(scenario):
+    impatient = InProcessVehicle(scenario, seed=7, link_config=LinkConfig(ready_timeout_s=5.0))
+    status, runner = fly(impatient, "ArmAndTakeoff: {altitude_m: 15}", timeout_s=60)
+    assert status == Status.FAILURE
+    # The bounded wait for readiness ran out before GUIDED could even be entered; the reason says so.
+    assert "failed" in runner.tree.root.feedback_message and "EKF" in runner.tree.root.feedback_message
+    assert not impatient.sim.autopilot.armed
+
+
+def test_goto_reaches_an_enu_waypoint(vehicle):
+    take_off(vehicle, 12)
+    status, runner = fly(vehicle, "GoTo: {waypoint: [40, -25, 18], acceptance_radius_m: 1.5}", timeout_s=90)
+    assert status == Status.SUCCESS, runner.tip_message()
+    np.testing.assert_allclose(vehicle.sim.truth.pos_enu, [40, -25, 18], atol=2.5)
+
+
+def test_goto_reaches_a_global_waypoint(vehicle, scenario):
+    take_off(vehicle, 12)
+    target = vehicle.sim.autopilot.frame.to_geodetic((-30.0, 35.0, 0.0))  # 30 m west, 35 m north of home
+    body = f"GoTo: {{frame: global, waypoint: [{target.lat_deg:.8f}, {target.lon_deg:.8f}, 15]}}"
+    status, runner = fly(vehicle, body, timeout_s=90)
+    assert status == Status.SUCCESS, runner.tip_message()
+    np.testing.assert_allclose(vehicle.sim.truth.pos_enu, [-30, 35, 15], atol=2.5)
+
+
+def test_goto_fails_when_the_vehicle_leaves_guided(vehicle):
+    take_off(vehicle, 12)
+    runner = runner_for(vehicle, "GoTo: {waypoint: [150, 0, 12]}")
+    assert vehicle.fly(runner, 3.0) == Status.RUNNING  # under way
+    vehicle.link.set_mode("BRAKE")  # the pilot takes over
+    assert vehicle.fly(runner, 10.0) == Status.FAILURE
+    assert "BRAKE" in runner.tree.root.feedback_message
+
+
+def test_hover_holds_position_for_its_duration(vehicle):
+    take_off(vehicle, 12)
+    start_t, start_pos = vehicle.sim.time_s, horizontal(vehicle.sim.truth.pos_enu)
+    status, runner = fly(vehicle, "Hover: {duration_s: 8}", timeout_s=30)
+    assert status == Status.SUCCESS, runner.tip_message()
+    assert vehicle.sim.time_s - start_t == pytest.approx(8.0, abs=0.6)
+    assert np.linalg.norm(horizontal(vehicle.sim.truth.pos_enu) - start_pos) < 1.5
+
+
+def test_halting_a_goto_leaves_the_vehicle_hovering(vehicle):
+    take_off(vehicle, 12)
+    # Timeout halts GoTo after 4 s; the halted leaf must replace its target with a hover.
+    status, runner = fly(vehicle, "Timeout:\n  msec: 4000\n  child:\n    GoTo: {waypoint: [300, 0, 12]}", timeout_s=20)
+    assert status == Status.FAILURE
+    vehicle.run_until(lambda: False, 12.0)  # let it brake
+    assert np.linalg.norm(vehicle.sim.truth.vel_enu) < 0.5
+    assert vehicle.sim.truth.pos_enu[0] < 120  # it stopped long before the 300 m waypoint
+
+
+def test_rtl_returns_home_lands_and_disarms(vehicle):
+    take_off(vehicle, 12)
+    status, _ = fly(vehicle, "GoTo: {waypoint: [50, 30, 12]}", timeout_s=60)
+    assert status == Status.SUCCESS
+    status, runner = fly(vehicle, "RTL: {wait_landed: true}", timeout_s=180)
+    assert status == Status.SUCCESS, runner.tip_message()
+    truth = vehicle.sim.truth
+    assert truth.on_ground and not vehicle.sim.autopilot.armed
+    assert np.linalg.norm(horizontal(truth.pos_enu)) < 3.0
+
+
+def test_land_descends_where_it_is_and_disarms(vehicle):
+    take_off(vehicle, 12)
+    fly(vehicle, "GoTo: {waypoint: [-20, 25, 12]}", timeout_s=60)
+    status, runner = fly(vehicle, "Land", timeout_s=120)
+    assert status == Status.SUCCESS, runner.tip_message()
+    assert vehicle.sim.truth.on_ground and not vehicle.sim.autopilot.armed
+    np.testing.assert_allclose(horizontal(vehicle.sim.truth.pos_enu), [-20, 25], atol=2.5)
+
+
+def test_rtl_without_waiting_succeeds_once_accepted(vehicle):
+    take_off(vehicle, 12)
+    status, _ = fly(vehicle, "RTL: {wait_landed: false}", timeout_s=10)
+    assert status == Status.SUCCESS
+    assert vehicle.sim.autopilot.mode == "RTL" and vehicle.sim.autopilot.armed

@@ -1,0 +1,91 @@
+"""The patrol mission end to end: in-process rehearsal, reproducibility, failsafe, and over TCP."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from sitl.rehearsal import rehearse
+
+ROOT = Path(__file__).resolve().parents[2]
+TREE = ROOT / "trees" / "patrol.yaml"
+SCENARIO = ROOT / "sitl" / "scenarios" / "patrol.yaml"
+CLI = [sys.executable, "-m", "chaser_bt.cli"]
+
+pytestmark = pytest.mark.slow
+
+# Scores that depend only on the simulation, not on how fast this machine ran it.
+DETERMINISTIC_KEYS = ("outcome", "sim_time_s", "ticks", "landed_dist_m", "max_alt_m", "distance_flown_m", "battery_used_pct", "message")
+
+
+def test_patrol_rehearsal_flies_the_square_and_lands_home():
+    report = rehearse(TREE, SCENARIO, seed=1)
+    assert report.outcome == "landed", report.message
+    assert report.landed_dist_m < 3.0
+    assert report.max_alt_m == pytest.approx(20.0, abs=2.0)
+    # Out and back along a 100 m square: 400 m of legs, plus whatever RTL adds.
+    assert 390 < report.distance_flown_m < 480
+
+
+def test_patrol_rehearsal_is_reproducible_for_a_seed():
+    first = rehearse(TREE, SCENARIO, seed=4).to_dict()
+    second = rehearse(TREE, SCENARIO, seed=4).to_dict()
+    assert {k: first[k] for k in DETERMINISTIC_KEYS} == {k: second[k] for k in DETERMINISTIC_KEYS}
+
+
+def test_different_seeds_fly_different_gusts():
+    a = rehearse(TREE, SCENARIO, seed=1).to_dict()
+    b = rehearse(TREE, SCENARIO, seed=2).to_dict()
+    assert a["outcome"] == b["outcome"] == "landed"
+    assert (a["distance_flown_m"], a["battery_used_pct"]) != (b["distance_flown_m"], b["battery_used_pct"])
+
+
+def test_link_loss_mid_mission_ends_in_the_autopilots_failsafe(tmp_path):
+    scenario = yaml.safe_load(SCENARIO.read_text())
+    scenario["faults"] = [{"at_s": 75.0, "kind": "link_loss"}]  # for good: the GCS never returns
+    path = tmp_path / "link_loss.yaml"
+    path.write_text(yaml.safe_dump(scenario))
+    report = rehearse(TREE, path, seed=1)
+    assert report.outcome == "failsafe", report.message
+    assert "no messages" in report.message.lower() or "quiet" in report.message.lower()
+    assert report.landed_dist_m < 5.0  # GCS failsafe -> RTL brings it home
+
+
+def test_cli_rehearse_prints_the_json_report():
+    out = subprocess.run(
+        [*CLI, "rehearse", str(TREE), "--scenario", str(SCENARIO), "--seed", "1", "--json"],
+        capture_output=True, text=True, timeout=300, check=True,
+    )
+    report = json.loads(out.stdout)
+    assert report["outcome"] == "landed"
+    for key in ("sim_time_s", "wall_time_s", "landed_dist_m"):
+        assert key in report
+
+
+def test_run_flies_the_simulator_over_tcp_to_a_landing():
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    sim = subprocess.Popen(
+        [*CLI, "sitl", "--scenario", str(SCENARIO), "--speedup", "25", "--tcp-port", "0", "--udp-port", "0"],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
+    )
+    try:
+        url = None
+        for line in sim.stdout:
+            match = re.search(r"(tcp:127\.0\.0\.1:\d+)", line)
+            if match:
+                url = match.group(1)
+                break
+        assert url, "the simulator printed no tcp connection string"
+        run = subprocess.run([*CLI, "run", str(TREE), "--connect", url], capture_output=True, text=True, timeout=240)
+        assert run.returncode == 0, run.stdout + run.stderr
+        assert "success" in run.stdout
+    finally:
+        sim.terminate()
+        sim.wait(timeout=10)

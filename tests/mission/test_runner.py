@@ -1,0 +1,134 @@
+"""The mission runner against the simulator: tick rate on vehicle time, state wiring, clean stops."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import py_trees
+import pytest
+
+from chaser_bt.mission.runner import VEHICLE_STATE_KEY, MissionRunner, RunStatus
+from chaser_bt.tree import Registry, default_registry, input_port, load_tree_text
+from chaser_bt.vehicle import VehicleState
+from sitl.rehearsal import InProcessVehicle
+from sitl.scenario import load_scenario
+
+Status = py_trees.common.Status
+SCENARIO = Path(__file__).resolve().parents[2] / "sitl" / "scenarios" / "patrol.yaml"
+
+
+class Spin(py_trees.ports.BehaviourWithPorts):
+    """RUNNING forever; remembers its ticks and how it was terminated."""
+
+    INPUT_PORTS: dict = {}
+    OUTPUT_PORTS: dict = {}
+    ticks = 0
+    terminated: list = []
+
+    def update(self):
+        Spin.ticks += 1
+        return Status.RUNNING
+
+    def terminate(self, new_status):
+        Spin.terminated.append(new_status)
+
+
+class Boom(py_trees.ports.BehaviourWithPorts):
+    """Raises on its first tick, like a leaf with a bug."""
+
+    INPUT_PORTS: dict = {}
+    OUTPUT_PORTS: dict = {}
+
+    def update(self):
+        raise RuntimeError("leaf bug")
+
+
+class SeesState(py_trees.ports.BehaviourWithPorts):
+    """SUCCESS when the state port holds a VehicleState with a vehicle time."""
+
+    INPUT_PORTS = {"state": input_port(VehicleState, "vehicle state", default_key=VEHICLE_STATE_KEY)}
+    OUTPUT_PORTS: dict = {}
+
+    def update(self):
+        state = self.get_input("state")
+        return Status.SUCCESS if state.t_boot_s > 0 else Status.FAILURE
+
+
+@pytest.fixture
+def registry() -> Registry:
+    reg = default_registry().copy()
+    for cls in (Spin, Boom, SeesState):
+        reg.register(cls)
+    Spin.ticks, Spin.terminated = 0, []
+    return reg
+
+
+@pytest.fixture
+def vehicle() -> InProcessVehicle:
+    v = InProcessVehicle(load_scenario(SCENARIO), seed=11)
+    assert v.run_until(lambda: v.link.state.t_boot_s > 1.0, 10)
+    return v
+
+
+def runner(vehicle, registry, root: str, rate_hz: float = 10.0) -> MissionRunner:
+    tree = load_tree_text(f"version: 1\ntrees:\n  T:\n    {root}\n", source="<test>", registry=registry)
+    return MissionRunner(tree, vehicle.link, vehicle.clock, rate_hz=rate_hz)
+
+
+def test_ticks_at_the_configured_rate_in_vehicle_time(vehicle, registry):
+    r = runner(vehicle, registry, "Spin", rate_hz=5.0)
+    start = vehicle.sim.time_s
+    vehicle.run_until(lambda: (r.tick_if_due(), False)[1], 10.0)
+    assert vehicle.sim.time_s - start == pytest.approx(10.0, abs=0.05)
+    assert Spin.ticks in (50, 51)  # 5 Hz for 10 s of vehicle time, whatever the wall clock did
+
+
+def test_vehicle_state_reaches_leaves_through_the_blackboard(vehicle, registry):
+    r = runner(vehicle, registry, "SeesState")
+    assert vehicle.fly(r, 2.0) == Status.SUCCESS
+    assert py_trees.blackboard.Blackboard.get(VEHICLE_STATE_KEY) is vehicle.link.state
+
+
+def test_run_returns_success_when_the_root_succeeds(vehicle, registry):
+    result = runner(vehicle, registry, "AlwaysSuccess").run(idle=vehicle.sim.step)
+    assert result.status is RunStatus.SUCCESS
+
+
+def test_a_leaf_that_raises_ends_the_run_in_error(vehicle, registry):
+    result = runner(vehicle, registry, "Boom").run(idle=vehicle.sim.step)
+    assert result.status is RunStatus.ERROR
+    assert "leaf bug" in result.message
+
+
+def test_ctrl_c_halts_running_leaves(vehicle, registry):
+    r = runner(vehicle, registry, "Spin")
+    steps = iter(range(300))
+
+    def idle():
+        vehicle.sim.step()
+        if next(steps) == 299:
+            raise KeyboardInterrupt
+
+    result = r.run(idle=idle)
+    assert result.status is RunStatus.INTERRUPTED
+    assert Spin.ticks > 0 and Spin.terminated[-1] == Status.INVALID
+
+
+def test_stop_leaves_a_flying_vehicle_hovering(vehicle, registry):
+    r = runner(vehicle, registry, "ArmAndTakeoff: {altitude_m: 12}")
+    assert vehicle.fly(r, 150) == Status.SUCCESS
+    go = runner(vehicle, registry, "GoTo: {waypoint: [400, 0, 12]}")
+    vehicle.fly(go, 8.0)
+    assert np.linalg.norm(vehicle.sim.truth.vel_enu) > 3.0  # under way
+    go.stop("test")
+    vehicle.run_until(lambda: False, 12.0)
+    assert np.linalg.norm(vehicle.sim.truth.vel_enu) < 0.5
+
+
+def test_a_silent_vehicle_ends_the_run_with_a_clear_error(vehicle, registry):
+    r = runner(vehicle, registry, "Spin")
+    vehicle.sim.link_up = False  # the radio dies
+    result = r.run(idle=vehicle.sim.step)
+    assert result.status is RunStatus.ERROR
+    assert "5" in result.message or "quiet" in result.message.lower()

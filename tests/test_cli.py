@@ -1,0 +1,98 @@
+"""The command line: exit codes and error messages for bad input (file, line, problem; all at once)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from chaser_bt.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+PATROL = ROOT / "trees" / "patrol.yaml"
+SCENARIO = ROOT / "sitl" / "scenarios" / "patrol.yaml"
+
+# Line numbers below are counted by hand in this text.
+BROKEN_TREE = """\
+version: 1
+trees:
+  Broken:
+    Sequence:
+      children:
+        - ArmAndTakof: {altitude_m: 20}
+        - GoTo: {waypoint: [1, 2, 3], speeed_mps: 4}
+        - BatteryAbove: {}
+        - Hover: {duration_s: true}
+"""
+
+
+@pytest.fixture
+def broken(tmp_path) -> Path:
+    path = tmp_path / "broken.yaml"
+    path.write_text(BROKEN_TREE)
+    return path
+
+
+def test_validate_accepts_the_patrol_tree(capsys):
+    assert main(["validate", str(PATROL)]) == 0
+    assert "ok" in capsys.readouterr().out
+
+
+def test_validate_reports_every_problem_with_file_and_line(broken, capsys):
+    assert main(["validate", str(broken)]) == 2
+    err = capsys.readouterr().err
+    assert f"{broken}:6:" in err and "ArmAndTakof" in err  # unknown node
+    assert "ArmAndTakeoff" in err  # ... with the closest known id suggested
+    assert f"{broken}:7:" in err and "speeed_mps" in err  # unknown port
+    assert f"{broken}:8:" in err and "percent" in err  # missing required port
+    assert f"{broken}:9:" in err and "duration_s" in err  # wrong literal type
+    assert "4 problem" in err
+
+
+def test_unknown_behaviour_lists_the_known_ones(tmp_path, capsys):
+    path = tmp_path / "unknown.yaml"
+    path.write_text("version: 1\ntrees:\n  T:\n    Fly: {}\n")
+    assert main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    for known in ("ArmAndTakeoff", "GoTo", "Hover", "RTL", "Land", "Sequence"):
+        assert known in err
+
+
+def test_malformed_yaml_names_the_position(tmp_path, capsys):
+    path = tmp_path / "malformed.yaml"
+    path.write_text("version: 1\ntrees:\n  T:\n    Sequence: {children: [\n")
+    assert main(["validate", str(path)]) == 2
+    assert f"{path}:" in capsys.readouterr().err
+
+
+def test_run_and_rehearse_refuse_an_invalid_tree(broken, capsys):
+    assert main(["run", str(broken), "--connect", "tcp:127.0.0.1:9"]) == 2
+    assert main(["rehearse", str(broken), "--scenario", str(SCENARIO)]) == 2
+    err = capsys.readouterr().err
+    assert err.count(f"{broken}:6:") == 2
+
+
+def test_missing_files_are_bad_input(tmp_path, capsys):
+    assert main(["validate", str(tmp_path / "nope.yaml")]) == 2
+    assert main(["rehearse", str(PATROL), "--scenario", str(tmp_path / "nope.yaml")]) == 2
+
+
+def test_show_prints_the_outline_with_port_values(capsys):
+    assert main(["show", str(PATROL)]) == 0
+    out = capsys.readouterr().out
+    assert "east corner" in out and "100" in out and "RTL" in out
+
+
+def test_unreachable_vehicle_is_a_clear_error_within_ten_seconds():
+    start = time.monotonic()
+    out = subprocess.run(
+        [sys.executable, "-m", "chaser_bt.cli", "run", str(PATROL), "--connect", "tcp:127.0.0.1:9"],
+        capture_output=True, text=True, timeout=30,
+    )
+    elapsed = time.monotonic() - start
+    assert out.returncode == 1
+    assert "127.0.0.1:9" in out.stderr
+    assert elapsed < 10.0 + 3.0  # the link's bound, plus interpreter start-up
