@@ -37,6 +37,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except _BadInput as exc:
         print(f"chaser-bt: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except BrokenPipeError:  # output piped into `head` and the like
+        sys.stderr.close()
+        return EXIT_OK
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -54,6 +57,8 @@ def _parser() -> argparse.ArgumentParser:
 
     p = command("show", _show, "print a tree as a unicode outline with its port values")
     p.add_argument("tree", type=Path)
+
+    command("nodes", _nodes, "list every node a tree can use, with its ports (from their declarations)")
 
     p = command("run", _run, "fly a tree against a vehicle (the simulator, ArduPilot SITL or a real ArduCopter)")
     p.add_argument("tree", type=Path)
@@ -109,6 +114,13 @@ def _show(args: argparse.Namespace) -> int:
     from chaser_bt.tree import render_tree
 
     print(render_tree(_load_tree(args.tree)))
+    return EXIT_OK
+
+
+def _nodes(args: argparse.Namespace) -> int:
+    from chaser_bt.tree import default_registry, render_node_reference
+
+    print(render_node_reference(default_registry()))
     return EXIT_OK
 
 

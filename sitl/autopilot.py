@@ -106,9 +106,14 @@ class TruthState:
 
     pos_enu: np.ndarray
     vel_enu: np.ndarray
-    attitude: Rotation
+    euler_ned: tuple[float, float, float]  # roll, pitch, yaw of FRD body in NED, radians
     on_ground: bool
     crashed: bool
+
+    @property
+    def attitude(self) -> Rotation:
+        """FLU body -> ENU; built on demand, since the scorer reads truth every physics step."""
+        return body_to_enu_rotation(*self.euler_ned)
 
 
 class Autopilot:
@@ -640,7 +645,7 @@ class Autopilot:
         return TruthState(
             pos_enu=np.array([ph.px, ph.py, ph.pz]),
             vel_enu=np.array([ph.vx, ph.vy, ph.vz]),
-            attitude=body_to_enu_rotation(ph.roll, ph.pitch, ph.yaw),
+            euler_ned=(ph.roll, ph.pitch, ph.yaw),
             on_ground=ph.on_ground,
             crashed=ph.crashed,
         )

@@ -144,8 +144,9 @@ def rehearse(
     try:
         while sim.time_s < scenario.time_limit_s:
             vehicle.step()
-            scorer.observe(sim.truth)
-            if sim.truth.crashed:
+            truth = sim.truth
+            scorer.observe(truth)
+            if truth.crashed:
                 outcome, message = "crashed", "the vehicle hit the ground hard"
                 break
             if runner.tick_if_due() and runner.finished:
@@ -193,8 +194,9 @@ def _fly_out_failsafe(sim: Simulator, scorer: _Scorer, limit_s: float, why: str)
     """Keep simulating without the mission until the vehicle is down or time runs out."""
     while sim.time_s < limit_s and not (sim.truth.on_ground and not sim.autopilot.armed):
         sim.step()
-        scorer.observe(sim.truth)
-        if sim.truth.crashed:
+        truth = sim.truth
+        scorer.observe(truth)
+        if truth.crashed:
             return "crashed", f"{why}; then the vehicle hit the ground hard"
     if sim.truth.on_ground and not sim.autopilot.armed:
         return "failsafe", f"{why}; the autopilot's failsafe brought it down"

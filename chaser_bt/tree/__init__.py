@@ -7,7 +7,7 @@ documented in ``docs/trees.md``.
 """
 
 from chaser_bt.tree.blackboard import reset_blackboard
-from chaser_bt.tree.display import render_tree
+from chaser_bt.tree.display import render_node_reference, render_tree
 from chaser_bt.tree.errors import Problem, TreeError, UnknownNode
 from chaser_bt.tree.loader import MissionTree, load_tree, load_tree_text, validate_tree, validate_tree_text
 from chaser_bt.tree.ports import Port, input_port, output_port
@@ -27,6 +27,7 @@ __all__ = [
     "load_tree_text",
     "validate_tree",
     "validate_tree_text",
+    "render_node_reference",
     "render_tree",
     "reset_blackboard",
     "Problem",

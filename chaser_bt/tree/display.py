@@ -14,8 +14,10 @@ from py_trees.common import Status
 
 from chaser_bt.tree.control import Parallel
 from chaser_bt.tree.loader import MissionTree
+from chaser_bt.tree.ports import Port, type_name
+from chaser_bt.tree.registry import Registry
 
-__all__ = ["render_tree"]
+__all__ = ["render_node_reference", "render_tree"]
 
 _STATUS = {Status.SUCCESS: "✓", Status.FAILURE: "✕", Status.RUNNING: "*", Status.INVALID: "-"}
 
@@ -56,3 +58,26 @@ def _symbol(node: py_trees.behaviour.Behaviour) -> str:
     if isinstance(node, py_trees.composites.Selector):
         return "{o}" if node.memory else "[o]"
     return "-->"
+
+
+def render_node_reference(registry: Registry) -> str:
+    """Every registered node with its kind, summary and ports, generated from their declarations."""
+    blocks = []
+    for node_id in sorted(registry.ids()):
+        node = registry.get(node_id)
+        lines = [f"{node_id} ({node.kind.name.lower()}): {node.description}"]
+        for direction, ports in (("in ", node.input_ports), ("out", node.output_ports)):
+            for name, port in ports.items():
+                lines.append(f"    {direction} {name}: {type_name(port.data_type)}{_port_note(port)}  {port.description}")
+        blocks.append("\n".join(lines))
+    return "\n".join(blocks)
+
+
+def _port_note(port) -> str:
+    if isinstance(port, Port) and port.default_key:
+        return f" = {{{port.default_key}}}"
+    if port.has_default:
+        value = port.default_value
+        return f" = {getattr(value, 'name', value)}"
+    return "" if not port.required else " (required)"
+

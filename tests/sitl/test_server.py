@@ -52,12 +52,15 @@ class _SimClock:
     def __init__(self, conn) -> None:
         self.conn = conn
         self.t = 0.0
+        self.texts: list[str] = []  # every STATUSTEXT seen
 
-    def recv(self, kinds=None, timeout: float = 0.2):
-        msg = self.conn.recv_match(type=kinds, blocking=True, timeout=timeout)
+    def recv(self, timeout: float = 0.2):
+        msg = self.conn.recv_match(blocking=True, timeout=timeout)
         boot_ms = getattr(msg, "time_boot_ms", None)
         if boot_ms is not None:
             self.t = max(self.t, boot_ms / 1000.0)
+        if msg is not None and msg.get_type() == "STATUSTEXT":
+            self.texts.append(msg.text)
         return msg
 
     def wait(self, predicate, sim_timeout_s: float, on_message=lambda: None):
@@ -100,14 +103,9 @@ def test_arming_before_gps_fix_is_refused_over_udp_with_the_reason():
         conn = _connect(urls["udpout"])
         clock = _SimClock(conn)
         conn.arducopter_arm()
-        texts = []
-        ack = clock.wait(
-            lambda m: (m.get_type() == "STATUSTEXT" and texts.append(m.text) and False)
-            or (m.get_type() == "COMMAND_ACK" and m.command == mav.MAV_CMD_COMPONENT_ARM_DISARM),
-            10.0,
-        )
+        ack = clock.wait(lambda m: m.get_type() == "COMMAND_ACK" and m.command == mav.MAV_CMD_COMPONENT_ARM_DISARM, 10.0)
         assert ack is not None and ack.result == mav.MAV_RESULT_FAILED
-        assert "PreArm: Need 3D Fix" in texts
+        assert "PreArm: Need 3D Fix" in clock.texts
         assert not conn.motors_armed()
         conn.close()
 
@@ -134,12 +132,10 @@ def test_lost_gcs_heartbeat_makes_the_vehicle_rtl():
                           20.0, heartbeat_at_1hz) is not None
         assert conn.flightmode == "GUIDED"
         silent_from = last_beat[0]
-        texts = []
-        rtl = clock.wait(lambda m: (m.get_type() == "STATUSTEXT" and texts.append(m.text) and False)
-                         or (m.get_type() == "HEARTBEAT" and m.custom_mode == 6), 15.0)
+        rtl = clock.wait(lambda m: m.get_type() == "HEARTBEAT" and m.custom_mode == 6, 15.0)
         assert rtl is not None and conn.flightmode == "RTL"
         assert 5.0 <= clock.t - silent_from <= 6.5  # FS_GCS_TIMEOUT 5 s (+ telemetry granularity)
-        assert "GCS Failsafe" in texts
+        assert "GCS Failsafe" in clock.texts
         conn.close()
 
 
