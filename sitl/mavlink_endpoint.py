@@ -407,7 +407,7 @@ class MavlinkEndpoint:
                 self._hold()
                 return
             lat, lon = msg.lat_int * 1e-7, msg.lon_int * 1e-7
-            if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+            if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0 and math.isfinite(alt_amsl)):
                 self._hold()
                 return
             pos_enu = ap.frame.to_enu(lat, lon, alt_amsl)

@@ -62,9 +62,9 @@ def test_body_offset_target_is_rotated_by_the_heading():
     _local(gcs, mav.MAV_FRAME_LOCAL_OFFSET_NED, 0, 0, 0, mask=POS_YAW, yaw=math.pi / 2)  # face east, stay
     gcs.run(8.0)
     start = _truth(gcs).copy()
-    _local(gcs, mav.MAV_FRAME_BODY_OFFSET_NED, 10.0, 0.0, 0.0)  # 10 m ahead = 10 m east
+    _local(gcs, mav.MAV_FRAME_BODY_OFFSET_NED, 10.0, 5.0, 0.0)  # 10 m ahead, 5 m right: east, south
     gcs.run(12.0)
-    np.testing.assert_allclose(_truth(gcs) - start, [10.0, 0.0, 0.0], atol=0.7)
+    np.testing.assert_allclose(_truth(gcs) - start, [10.0, -5.0, 0.0], atol=0.7)
 
 
 def test_local_offset_target_is_relative_to_the_current_position():
