@@ -135,6 +135,8 @@ def _run(args: argparse.Namespace) -> int:
     tree = _load_tree(args.tree)
     try:
         link = VehicleLink.connect(args.connect)
+    except ValueError as exc:  # a malformed connection string
+        raise _BadInput(str(exc)) from None
     except VehicleError as exc:
         print(f"chaser-bt: {exc}", file=sys.stderr)
         return EXIT_FAILED

@@ -75,6 +75,11 @@ def test_run_and_rehearse_refuse_an_invalid_tree(broken, capsys):
     assert err.count(f"{broken}:6:") == 2
 
 
+def test_malformed_connection_string_is_bad_input(capsys):
+    assert main(["run", str(PATROL), "--connect", "tcp:nowhere"]) == 2
+    assert "tcp:nowhere" in capsys.readouterr().err
+
+
 def test_missing_files_are_bad_input(tmp_path, capsys):
     assert main(["validate", str(tmp_path / "nope.yaml")]) == 2
     assert main(["rehearse", str(PATROL), "--scenario", str(tmp_path / "nope.yaml")]) == 2

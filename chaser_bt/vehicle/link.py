@@ -167,6 +167,9 @@ class VehicleLink:
         self._next_home_request = t
         self._rc_hold: tuple[int, int, int, int] | None = None
         self._next_rc = t
+        self._on_receive: list[Callable[[Any], None]] = []
+        self._on_send: list[Callable[[Any], None]] = []
+        conn.mav.set_send_callback(self._notify_sent)
 
     # ----------------------------------------------------------------------------- opening
     @classmethod
@@ -450,9 +453,28 @@ class VehicleLink:
         elif s.mode in _HOVER_BY_STICKS:
             self.rc_override(_RC_CENTRE, _RC_CENTRE, _RC_CENTRE, _RC_CENTRE)
 
+    def add_listener(
+        self, *, on_receive: Callable[[Any], None] | None = None, on_send: Callable[[Any], None] | None = None,
+    ) -> None:
+        """Observe every MAVLink message from the vehicle and every one sent to it (recorders, tests).
+
+        Listeners get the decoded pymavlink message; they run inside :meth:`poll` and the senders,
+        so they must be quick and must not raise.
+        """
+        if on_receive is not None:
+            self._on_receive.append(on_receive)
+        if on_send is not None:
+            self._on_send.append(on_send)
+
     # ----------------------------------------------------------------------------- internals
+    def _notify_sent(self, msg: Any) -> None:
+        for listener in self._on_send:
+            listener(msg)
+
     def _handle(self, msg: Any, now: float) -> int:
         mtype = msg.get_type()
+        for listener in self._on_receive:
+            listener(msg)
         if mtype == "BAD_DATA":
             self.counters.bad_packets += 1
             return 0

@@ -495,3 +495,15 @@ def test_wait_raises_for_refused_commands_and_on_timeout(rig):
         rig.link.wait(rig.link.takeoff(5.0), 5.0, pump=pump)
     with pytest.raises(LinkTimeout):
         rig.link.wait(lambda s: s.armed, 2.0, pump=pump)
+
+
+def test_listeners_see_every_message_in_and_out(rig):
+    received, sent = [], []
+    heartbeats_before = rig.link.counters.received["HEARTBEAT"]
+    rig.link.add_listener(on_receive=lambda m: received.append(m.get_type()), on_send=lambda m: sent.append(m.get_type()))
+    rig.run(2.0)
+    rig.link.set_mode("GUIDED")
+    rig.run(1.0)
+    assert "HEARTBEAT" in received and received.count("HEARTBEAT") == rig.link.counters.received["HEARTBEAT"] - heartbeats_before
+    assert "COMMAND_LONG" in sent and sent.count("HEARTBEAT") >= 2  # the GCS heartbeat at 1 Hz
+
