@@ -65,6 +65,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--connect", required=True, metavar="URL", help="pymavlink connection string: tcp:HOST:PORT, udpout:, udpin:, serial device")
     p.add_argument("--rate-hz", type=float, default=10.0, help="tick rate (default 10)")
     p.add_argument("--clock", choices=("vehicle", "wall"), default="vehicle", help="tick on the vehicle's boot time (default; right at any sim speed-up) or on the wall clock")
+    p.add_argument("--show-ticks", action="store_true", help="print the tree with statuses whenever a status changes")
 
     p = command("rehearse", _rehearse, "fly a tree against the in-process simulator and report")
     p.add_argument("tree", type=Path)
@@ -72,6 +73,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--rate-hz", type=float, default=10.0)
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")
+    p.add_argument("--show-ticks", action="store_true", help="print the tree with statuses whenever a status changes (to stderr with --json)")
 
     p = command("sitl", _sitl, "start the built-in ArduCopter-compatible simulator on loopback")
     p.add_argument("--scenario", required=True, type=Path)
@@ -142,6 +144,8 @@ def _run(args: argparse.Namespace) -> int:
         return EXIT_FAILED
     clock = WallClock() if args.clock == "wall" else FunctionClock(lambda: link.state.t_boot_s)
     runner = MissionRunner(tree, link, clock, rate_hz=args.rate_hz)
+    if args.show_ticks:
+        runner.on_tick(_tick_printer(tree, sys.stdout))
     print(f"flying {tree.name} on {args.connect} (Ctrl-C hands the aircraft back hovering)")
     try:
         result = runner.run()
@@ -157,12 +161,25 @@ def _rehearse(args: argparse.Namespace) -> int:
     scenario = _load_scenario(args.scenario)
     from sitl.rehearsal import rehearse
 
-    report = rehearse(tree, scenario, args.seed, rate_hz=args.rate_hz)
+    on_tick = _tick_printer(tree, sys.stderr if args.json else sys.stdout) if args.show_ticks else None
+    report = rehearse(tree, scenario, args.seed, rate_hz=args.rate_hz, on_tick=on_tick)
     if args.json:
         print(json.dumps(report.to_dict()))
     else:
         _print_report(report.to_dict())
     return EXIT_OK if report.outcome in ("landed", "completed", "following") else EXIT_FAILED
+
+
+def _tick_printer(tree, stream):
+    """A tick listener that prints the tree with statuses whenever one changed."""
+    from chaser_bt.tree import render_tree
+
+    def show(changes) -> None:
+        if changes:
+            print(f"--- t = {changes[0].t:.1f} s: " + ", ".join(f"{c.node} {c.old}->{c.new}" for c in changes), file=stream)
+            print(render_tree(tree, show_status=True), file=stream)
+
+    return show
 
 
 def _print_report(report: dict) -> None:

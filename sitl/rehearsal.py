@@ -23,7 +23,7 @@ import numpy as np
 import py_trees
 
 from chaser_bt.mission.clock import FunctionClock
-from chaser_bt.mission.runner import MissionRunner
+from chaser_bt.mission.runner import MissionRunner, StatusChange
 from chaser_bt.tree import MissionTree, load_tree, reset_blackboard
 from chaser_bt.vehicle import LinkConfig, VehicleError, VehicleLink
 from chaser_bt.vehicle.pipe import byte_pipe
@@ -47,6 +47,7 @@ class RehearsalReport:
     wall_time_s: float
     realtime_factor: float
     ticks: int
+    status_changes: int  # entries in the runner's tick log
     tick_ms_median: float
     landed_dist_m: float | None  # horizontal distance from home at the last touchdown
     max_alt_m: float  # highest point above home (truth)
@@ -125,8 +126,12 @@ def rehearse(
     *,
     rate_hz: float = 10.0,
     link_config: LinkConfig | None = None,
+    on_tick: Callable[[list[StatusChange]], None] | None = None,
 ) -> RehearsalReport:
-    """Fly ``tree`` against a fresh simulator built from ``scenario`` with ``seed``; score it."""
+    """Fly ``tree`` against a fresh simulator built from ``scenario`` with ``seed``; score it.
+
+    ``on_tick`` is called after every tick with the tick's status changes (``--show-ticks``).
+    """
     reset_blackboard()
     if not isinstance(tree, MissionTree):
         tree = load_tree(tree)
@@ -136,6 +141,8 @@ def rehearse(
     vehicle = InProcessVehicle(scenario, seed, link_config)
     sim = vehicle.sim
     runner = MissionRunner(tree, vehicle.link, vehicle.clock, rate_hz=rate_hz)
+    if on_tick is not None:
+        runner.on_tick(on_tick)
     scorer = _Scorer()
     battery_start = sim.autopilot.battery().remaining_pct
 
@@ -175,6 +182,7 @@ def rehearse(
         wall_time_s=round(wall, 3),
         realtime_factor=round(sim.time_s / wall, 1) if wall > 0 else math.inf,
         ticks=runner.ticks,
+        status_changes=len(runner.tick_log),
         tick_ms_median=round(statistics.median(ticks_ms), 4) if ticks_ms else 0.0,
         landed_dist_m=None if scorer.landed_dist_m is None else round(scorer.landed_dist_m, 2),
         max_alt_m=round(scorer.max_alt_m, 2),

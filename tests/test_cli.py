@@ -101,3 +101,12 @@ def test_unreachable_vehicle_is_a_clear_error_within_ten_seconds():
     assert out.returncode == 1
     assert "127.0.0.1:9" in out.stderr
     assert elapsed < 10.0 + 3.0  # the link's bound, plus interpreter start-up
+
+
+@pytest.mark.slow
+def test_rehearse_show_ticks_prints_the_tree_at_each_change(capsys):
+    assert main(["rehearse", str(PATROL), "--scenario", str(SCENARIO), "--seed", "1", "--show-ticks"]) == 0
+    out = capsys.readouterr().out
+    assert "east corner RUNNING->SUCCESS" in out
+    assert out.count("--- t = ") >= 6  # take-off, four legs, RTL at least
+    assert "[*]" in out and "[✓]" in out  # statuses drawn in the tree

@@ -27,7 +27,7 @@ from chaser_bt.mission.clock import Clock
 from chaser_bt.tree import MissionTree
 from chaser_bt.vehicle import VehicleError, VehicleLink
 
-__all__ = ["MISSION_TIME_KEY", "VEHICLE_STATE_KEY", "MissionRunner", "RunResult", "RunStatus"]
+__all__ = ["MISSION_TIME_KEY", "VEHICLE_STATE_KEY", "MissionRunner", "RunResult", "RunStatus", "StatusChange"]
 
 log = logging.getLogger(__name__)
 
@@ -51,6 +51,16 @@ class RunResult:
     status: RunStatus
     ticks: int
     message: str = ""
+
+
+@dataclass(frozen=True)
+class StatusChange:
+    """One entry of the tick log: a node's status changed at mission time ``t``."""
+
+    t: float
+    node: str  # the node's instance name
+    old: str  # py_trees status names: INVALID, RUNNING, SUCCESS, FAILURE
+    new: str
 
 
 @dataclass
@@ -92,7 +102,8 @@ class MissionRunner:
         self._blackboard = py_trees.blackboard.Client(name="MissionRunner")
         self._blackboard.register_key(VEHICLE_STATE_KEY, access=py_trees.common.Access.WRITE)
         self._blackboard.register_key(MISSION_TIME_KEY, access=py_trees.common.Access.WRITE)
-        self._status_listeners: list[Callable[[float, str, str], None]] = []
+        self.tick_log: list[StatusChange] = []
+        self._tick_listeners: list[Callable[[list[StatusChange]], None]] = []
         self._last_status: dict[object, py_trees.common.Status] = {}
         self._set_up = False
 
@@ -123,9 +134,9 @@ class MissionRunner:
         """Wall time of every tick so far, in milliseconds (for benchmarks)."""
         return self._stats.wall_ms
 
-    def on_status_change(self, listener: Callable[[float, str, str], None]) -> None:
-        """Call ``listener(t, node_name, new_status)`` whenever a node's status changes."""
-        self._status_listeners.append(listener)
+    def on_tick(self, listener: Callable[[list[StatusChange]], None]) -> None:
+        """Call ``listener(changes)`` after every tick with that tick's status changes (maybe none)."""
+        self._tick_listeners.append(listener)
 
     # -- ticking ----------------------------------------------------------------------------
 
@@ -150,7 +161,9 @@ class MissionRunner:
         if self._next_tick_s is None:
             self._next_tick_s = now
         self._next_tick_s = max(self._next_tick_s + self.period_s, now)
-        self._notify_status_changes(now)
+        changes = self._record_status_changes(now)
+        for listener in self._tick_listeners:
+            listener(changes)
         return self.status
 
     def tick_if_due(self) -> bool:
@@ -170,6 +183,7 @@ class MissionRunner:
             self._bt.root.stop(py_trees.common.Status.INVALID)
         except Exception:
             log.exception("a behaviour raised while being halted")
+        self._record_status_changes(self.clock.now())
         try:
             self.link.hover()
         except Exception as exc:  # nothing more can be sent; the autopilot's failsafes take over
@@ -223,11 +237,13 @@ class MissionRunner:
         self._blackboard.set(VEHICLE_STATE_KEY, self.link.state)
         self._blackboard.set(MISSION_TIME_KEY, now)
 
-    def _notify_status_changes(self, now: float) -> None:
-        if not self._status_listeners:
-            return
+    def _record_status_changes(self, now: float) -> list[StatusChange]:
+        """Append this tick's status changes to :attr:`tick_log` (kept for replay and plots)."""
+        changes = []
         for node in self._bt.root.iterate():
-            if self._last_status.get(node.id) != node.status:
+            old = self._last_status.get(node.id, py_trees.common.Status.INVALID)
+            if old != node.status:
                 self._last_status[node.id] = node.status
-                for listener in self._status_listeners:
-                    listener(now, node.name, node.status.name)
+                changes.append(StatusChange(now, node.name, old.name, node.status.name))
+        self.tick_log.extend(changes)
+        return changes

@@ -132,3 +132,17 @@ def test_a_silent_vehicle_ends_the_run_with_a_clear_error(vehicle, registry):
     result = r.run(idle=vehicle.sim.step)
     assert result.status is RunStatus.ERROR
     assert "5" in result.message or "quiet" in result.message.lower()
+
+
+def test_tick_log_records_each_status_change_once(vehicle, registry):
+    r = runner(vehicle, registry, "Sequence: {name: seq, children: [AlwaysSuccess: {name: ok}, Spin: {name: spin}]}")
+    seen = []
+    r.on_tick(seen.append)
+    vehicle.run_until(lambda: r.tick_if_due() and r.ticks == 3, 5.0)
+    first = [(c.node, c.old, c.new) for c in r.tick_log]
+    # Worked out by hand: the first tick starts everything; later ticks change nothing.
+    assert sorted(first) == [("ok", "INVALID", "SUCCESS"), ("seq", "INVALID", "RUNNING"), ("spin", "INVALID", "RUNNING")]
+    assert [len(changes) for changes in seen] == [3, 0, 0]
+    r.stop("test")
+    halted = {(c.node, c.old, c.new) for c in r.tick_log[3:]}
+    assert halted == {("seq", "RUNNING", "INVALID"), ("spin", "RUNNING", "INVALID"), ("ok", "SUCCESS", "INVALID")}
