@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["TargetCue"]
+__all__ = ["TargetCue", "TargetEstimate"]
 
 
 @dataclass(frozen=True)
@@ -54,3 +54,34 @@ class TargetCue:
     def age(self, now: float) -> float:
         """Seconds since the measurement."""
         return now - self.t
+
+
+@dataclass(frozen=True)
+class TargetEstimate(TargetCue):
+    """A cue from an on-board sensor that sees the target along a line of sight (the camera).
+
+    The bearing is what the camera measures well; the range is what it measures badly (paper
+    section 5: range from box size was too noisy to follow with), so both travel with their own
+    uncertainty and ``position_enu`` is the camera position plus ``range_m`` along the bearing.
+
+    Args:
+        bearing_enu: (3,) unit vector from the camera to the target, ENU.
+        range_m: estimated distance along the bearing (m); ``range_std_m`` its 1-sigma.
+        confidence: detector/tracker confidence in [0, 1].
+    """
+
+    bearing_enu: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, 0.0]))
+    range_m: float = float("nan")
+    range_std_m: float = float("nan")
+    confidence: float = 0.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        bearing = np.asarray(self.bearing_enu, dtype=float)
+        norm = float(np.linalg.norm(bearing)) if bearing.shape == (3,) else 0.0
+        if not np.isfinite(norm) or abs(norm - 1.0) > 1e-6:
+            raise ValueError(f"bearing must be a unit 3-vector, got {self.bearing_enu!r}")
+        if not 0.0 <= self.confidence <= 1.0:
+            raise ValueError(f"confidence must be in [0, 1], got {self.confidence}")
+        object.__setattr__(self, "bearing_enu", bearing)
+

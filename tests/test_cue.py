@@ -1,0 +1,26 @@
+"""Target cues and estimates validate what they carry."""
+
+import numpy as np
+import pytest
+
+from chaser_bt.cue import TargetCue, TargetEstimate
+
+
+def test_cue_age_is_measured_from_its_time():
+    cue = TargetCue(t=10.0, position_enu=[1, 2, 3])
+    assert cue.age(12.5) == pytest.approx(2.5)
+    assert cue.position_enu.dtype == float and cue.covariance_enu.shape == (3, 3)
+
+
+@pytest.mark.parametrize("position", [[1, 2], [1, 2, np.nan], "abc"])
+def test_cue_rejects_a_bad_position(position):
+    with pytest.raises(ValueError, match="position"):
+        TargetCue(t=0.0, position_enu=position)
+
+
+def test_estimate_requires_a_unit_bearing_and_a_confidence_in_range():
+    TargetEstimate(t=0.0, position_enu=[0, 40, 0], bearing_enu=[0, 1, 0], range_m=40.0, confidence=0.8)
+    with pytest.raises(ValueError, match="bearing"):
+        TargetEstimate(t=0.0, position_enu=[0, 40, 0], bearing_enu=[0, 2, 0])
+    with pytest.raises(ValueError, match="confidence"):
+        TargetEstimate(t=0.0, position_enu=[0, 40, 0], confidence=1.5)
