@@ -37,19 +37,10 @@ class TargetCue:
     track_id: int | None = None
 
     def __post_init__(self) -> None:
-        pos = np.asarray(self.position_enu, dtype=float)
-        cov = np.asarray(self.covariance_enu, dtype=float)
-        if pos.shape != (3,) or not np.all(np.isfinite(pos)):
-            raise ValueError(f"cue position must be 3 finite numbers, got {self.position_enu!r}")
-        if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
-            raise ValueError(f"cue covariance must be a finite 3x3 matrix, got shape {cov.shape}")
-        object.__setattr__(self, "position_enu", pos)
-        object.__setattr__(self, "covariance_enu", cov)
+        object.__setattr__(self, "position_enu", _finite_array(self.position_enu, (3,), "cue position"))
+        object.__setattr__(self, "covariance_enu", _finite_array(self.covariance_enu, (3, 3), "cue covariance"))
         if self.velocity_enu is not None:
-            vel = np.asarray(self.velocity_enu, dtype=float)
-            if vel.shape != (3,) or not np.all(np.isfinite(vel)):
-                raise ValueError(f"cue velocity must be 3 finite numbers, got {self.velocity_enu!r}")
-            object.__setattr__(self, "velocity_enu", vel)
+            object.__setattr__(self, "velocity_enu", _finite_array(self.velocity_enu, (3,), "cue velocity"))
 
     def age(self, now: float) -> float:
         """Seconds since the measurement."""
@@ -77,11 +68,21 @@ class TargetEstimate(TargetCue):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        bearing = np.asarray(self.bearing_enu, dtype=float)
-        norm = float(np.linalg.norm(bearing)) if bearing.shape == (3,) else 0.0
-        if not np.isfinite(norm) or abs(norm - 1.0) > 1e-6:
+        bearing = _finite_array(self.bearing_enu, (3,), "bearing")
+        if abs(float(np.linalg.norm(bearing)) - 1.0) > 1e-6:
             raise ValueError(f"bearing must be a unit 3-vector, got {self.bearing_enu!r}")
         if not 0.0 <= self.confidence <= 1.0:
             raise ValueError(f"confidence must be in [0, 1], got {self.confidence}")
         object.__setattr__(self, "bearing_enu", bearing)
+
+
+def _finite_array(value: object, shape: tuple[int, ...], what: str) -> np.ndarray:
+    """``value`` as a float array of ``shape`` with only finite entries, or a ValueError naming ``what``."""
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        array = None
+    if array is None or array.shape != shape or not np.all(np.isfinite(array)):
+        raise ValueError(f"{what} must be finite numbers of shape {shape}, got {value!r}")
+    return array
 
