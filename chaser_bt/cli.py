@@ -8,6 +8,7 @@ imported lazily: chaser_bt itself never depends on ``sitl`` (DESIGN §2).
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import logging
 import sys
@@ -17,6 +18,9 @@ from typing import Callable, Sequence
 __all__ = ["main"]
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+
+# Packages that bring their own sub-commands: each has ``add_command(subparsers)``.
+_COMMAND_MODULES = ("chaser_bt.radar.commands",)
 
 log = logging.getLogger("chaser_bt.cli")
 
@@ -74,6 +78,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--rate-hz", type=float, default=10.0)
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")
     p.add_argument("--show-ticks", action="store_true", help="print the tree with statuses whenever a status changes (to stderr with --json)")
+
+    for module in _COMMAND_MODULES:
+        importlib.import_module(module).add_command(sub)
 
     p = command("sitl", _sitl, "start the built-in ArduCopter-compatible simulator on loopback")
     p.add_argument("--scenario", required=True, type=Path)

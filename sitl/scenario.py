@@ -22,8 +22,10 @@ from chaser_bt.geo import GeoPoint
 from sitl.airframe import AirframeParams
 from sitl.params import ParamStore
 from sitl.physics import WindParams
+from sitl.radar.config import RadarClutter, RadarConfig, RadarFailureRates
+from sitl.targets import CirclePath, TargetPath, WaypointPath
 
-__all__ = ["ScenarioError", "BootParams", "Fault", "FAULT_KINDS", "Scenario", "load_scenario"]
+__all__ = ["ScenarioError", "BootParams", "Fault", "FAULT_KINDS", "Scenario", "ScriptedTarget", "load_scenario"]
 
 FAULT_KINDS = ("link_loss", "gps_loss", "battery_drop")
 
@@ -71,6 +73,19 @@ class Fault:
 
 
 @dataclass(frozen=True)
+class ScriptedTarget:
+    """A target flying a scripted path, present from ``start_s`` until ``end_s`` (None: to the end)."""
+
+    name: str
+    path: TargetPath
+    start_s: float = 0.0
+    end_s: float | None = None
+
+    def present(self, t: float) -> bool:
+        return t >= self.start_s and (self.end_s is None or t < self.end_s)
+
+
+@dataclass(frozen=True)
 class Scenario:
     """Everything the simulator needs to start a run."""
 
@@ -84,6 +99,8 @@ class Scenario:
     faults: tuple[Fault, ...] = ()
     time_limit_s: float = 600.0
     start_unix_s: float = DEFAULT_START_UNIX_S
+    radar: RadarConfig | None = None
+    targets: tuple[ScriptedTarget, ...] = ()
 
     def fault_active(self, kind: str, t: float) -> bool:
         """Whether any fault of ``kind`` is in force at sim time ``t``."""
@@ -147,7 +164,7 @@ class _Parser:
 
     def scenario(self, d: Any) -> Scenario:
         top = self.mapping(d, "", ("name", "home", "wind", "airframe", "params", "boot",
-                                   "faults", "time_limit_s", "start_unix_s"))
+                                   "faults", "time_limit_s", "start_unix_s", "radar", "targets"))
         if d is None:
             raise self.fail("", "a scenario mapping (the document is empty)")
         name = top.get("name", "unnamed")
@@ -165,6 +182,8 @@ class _Parser:
             faults=self.faults(top.get("faults")),
             time_limit_s=self.number(top, "time_limit_s", "", 600.0, minimum=0.0),
             start_unix_s=self.number(top, "start_unix_s", "", DEFAULT_START_UNIX_S, minimum=0.0),
+            radar=self.radar(top.get("radar")),
+            targets=self.targets(top.get("targets")),
         )
 
     def home(self, d: Any) -> tuple[GeoPoint, float]:
@@ -256,3 +275,122 @@ class _Parser:
             dur = None if m.get("duration_s") is None else self._positive(m, "duration_s", path, 0.0)
             out.append(Fault(at, kind, dur))
         return tuple(out)
+
+    # -- radar and scripted targets (sitl/scenarios/README.md) --------------------------------
+
+    _RADAR_KEYS = ("lat_deg", "lon_deg", "alt_m", "yaw_deg", "pitch_deg", "roll_deg", "fov_az_deg", "fov_el_deg",
+                   "min_range_m", "max_range_m", "rate_hz", "sigma_range_m", "sigma_az_deg", "sigma_el_deg",
+                   "sigma_vel_mps", "vel_tau_s", "pd", "coast_s", "confidence_tau_s", "failures", "clutter",
+                   "off_at_s", "udp_host", "udp_port", "radar_id")
+
+    def radar(self, d: Any) -> RadarConfig | None:
+        if d is None:
+            return None
+        m = self.mapping(d, "radar", self._RADAR_KEYS)
+        lat = self.number(m, "lat_deg", "radar", None)
+        lon = self.number(m, "lon_deg", "radar", None)
+        if not -90.0 <= lat <= 90.0 or not -180.0 <= lon <= 180.0:
+            raise self.fail("radar.lat_deg/lon_deg", "a latitude in [-90, 90] and a longitude in [-180, 180]", (lat, lon))
+        dflt = RadarConfig(GeoPoint(lat, lon))
+
+        def num(key: str, default: float, minimum: float | None = None) -> float:
+            return self.number(m, key, "radar", default, minimum)
+
+        def angle(key: str, default_rad: float, minimum: float | None = None) -> float:
+            return math.radians(self.number(m, key, "radar", math.degrees(default_rad), minimum))
+
+        pd = num("pd", dflt.pd, 0.0)
+        if pd > 1.0:
+            raise self.fail("radar.pd", "a probability in [0, 1]", pd)
+        rate = num("rate_hz", dflt.rate_hz)
+        if not rate > 0.0:
+            raise self.fail("radar.rate_hz", "a number > 0", rate)
+        min_r, max_r = num("min_range_m", dflt.min_range_m, 0.0), num("max_range_m", dflt.max_range_m, 0.0)
+        if max_r <= min_r:
+            raise self.fail("radar.max_range_m", f"a range > radar.min_range_m ({min_r})", max_r)
+        port = m.get("udp_port")
+        if port is not None and (isinstance(port, bool) or not isinstance(port, int) or not 0 < port < 65536):
+            raise self.fail("radar.udp_port", "a UDP port number 1..65535", port)
+        host = m.get("udp_host", dflt.udp_host)
+        if not isinstance(host, str) or not host:
+            raise self.fail("radar.udp_host", "a host name or address", host)
+        rid = m.get("radar_id", dflt.radar_id)
+        if not isinstance(rid, str) or not rid:
+            raise self.fail("radar.radar_id", "a non-empty string", rid)
+        off = m.get("off_at_s")
+        return RadarConfig(
+            position=GeoPoint(lat, lon, num("alt_m", 0.0)),
+            yaw_rad=angle("yaw_deg", 0.0), pitch_rad=angle("pitch_deg", 0.0), roll_rad=angle("roll_deg", 0.0),
+            fov_az_rad=angle("fov_az_deg", dflt.fov_az_rad, 0.0), fov_el_rad=angle("fov_el_deg", dflt.fov_el_rad, 0.0),
+            min_range_m=min_r, max_range_m=max_r, rate_hz=rate,
+            sigma_range_m=num("sigma_range_m", dflt.sigma_range_m, 0.0),
+            sigma_az_rad=angle("sigma_az_deg", dflt.sigma_az_rad, 0.0),
+            sigma_el_rad=angle("sigma_el_deg", dflt.sigma_el_rad, 0.0),
+            sigma_vel_mps=num("sigma_vel_mps", dflt.sigma_vel_mps, 0.0),
+            vel_tau_s=self._positive(m, "vel_tau_s", "radar", dflt.vel_tau_s),
+            pd=pd, coast_s=num("coast_s", dflt.coast_s, 0.0),
+            confidence_tau_s=self._positive(m, "confidence_tau_s", "radar", dflt.confidence_tau_s),
+            failures=self._radar_part(m.get("failures"), "radar.failures", RadarFailureRates),
+            clutter=self._radar_part(m.get("clutter"), "radar.clutter", RadarClutter),
+            off_at_s=None if off is None else num("off_at_s", 0.0, 0.0),
+            udp_host=host, udp_port=port, radar_id=rid,
+        )
+
+    def _radar_part(self, d: Any, path: str, cls: type) -> Any:
+        names = tuple(f.name for f in dataclasses.fields(cls))
+        m = self.mapping(d, path, names)
+        values = {k: self.number(m, k, path, None, 0.0) for k in m}
+        if "swap_prob" in values and values["swap_prob"] > 1.0:
+            raise self.fail(f"{path}.swap_prob", "a probability in [0, 1]", values["swap_prob"])
+        return cls(**values)
+
+    def targets(self, d: Any) -> tuple[ScriptedTarget, ...]:
+        if d is None:
+            return ()
+        if not isinstance(d, list):
+            raise self.fail("targets", "a list of scripted targets", d)
+        out, names = [], set()
+        for i, item in enumerate(d):
+            path = f"targets[{i}]"
+            m = self.mapping(item, path, ("name", "circle", "waypoints", "start_s", "end_s"))
+            name = m.get("name")
+            if not isinstance(name, str) or not name or name == "ownship" or name in names:
+                raise self.fail(f"{path}.name", "a unique non-empty name other than 'ownship'", name)
+            names.add(name)
+            if ("circle" in m) == ("waypoints" in m):
+                raise self.fail(path, "exactly one of the keys circle, waypoints")
+            start = self.number(m, "start_s", path, 0.0, 0.0)
+            end = None if m.get("end_s") is None else self.number(m, "end_s", path, None, start)
+            shape = self._circle(m["circle"], f"{path}.circle") if "circle" in m else self._waypoints(
+                m["waypoints"], f"{path}.waypoints")
+            out.append(ScriptedTarget(name, shape, start, end))
+        return tuple(out)
+
+    def _vector(self, v: Any, path: str) -> tuple[float, float, float]:
+        if (not isinstance(v, list) or len(v) != 3
+                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v)):
+            raise self.fail(path, "a list of 3 finite numbers [east, north, up] (m)", v)
+        return (float(v[0]), float(v[1]), float(v[2]))
+
+    def _circle(self, d: Any, path: str) -> CirclePath:
+        m = self.mapping(d, path, ("center_enu_m", "radius_m", "speed_mps", "clockwise", "phase_deg"))
+        if "center_enu_m" not in m:
+            raise self.fail(f"{path}.center_enu_m", "a list of 3 numbers (required key is missing)")
+        cw = m.get("clockwise", False)
+        if not isinstance(cw, bool):
+            raise self.fail(f"{path}.clockwise", "true or false", cw)
+        radius = self._positive(m, "radius_m", path, 50.0)
+        return CirclePath(self._vector(m["center_enu_m"], f"{path}.center_enu_m"), radius,
+                          self.number(m, "speed_mps", path, 5.0, 0.0), cw,
+                          math.radians(self.number(m, "phase_deg", path, 0.0)))
+
+    def _waypoints(self, d: Any, path: str) -> WaypointPath:
+        m = self.mapping(d, path, ("points_enu_m", "speed_mps", "loop"))
+        pts = m.get("points_enu_m")
+        if not isinstance(pts, list) or len(pts) < 2:
+            raise self.fail(f"{path}.points_enu_m", "a list of at least two [east, north, up] points", pts)
+        loop = m.get("loop", False)
+        if not isinstance(loop, bool):
+            raise self.fail(f"{path}.loop", "true or false", loop)
+        points = tuple(self._vector(v, f"{path}.points_enu_m[{k}]") for k, v in enumerate(pts))
+        return WaypointPath(points, self._positive(m, "speed_mps", path, 5.0), loop)

@@ -6,6 +6,13 @@ Nothing here reads a clock: time is the step count, so the same scenario and see
 bytes on the wire, at any speed and in any process (a rehearsal runs it lock-step in-process, the
 real-time server paces it against the wall clock from outside).
 
+When the scenario has a ``radar:`` section the simulator also runs the ground radar
+(:mod:`sitl.radar`): at each radar scan it shows the radar the vehicle (while airborne, as
+``ownship``) and the scenario's scripted ``targets``, encodes the scan as one JSON datagram and
+sends it over UDP (``radar.udp_port``) and to every in-process consumer
+(:meth:`Simulator.add_radar_consumer`). The radar has its own random stream, so adding one does
+not change the vehicle's noise.
+
 Scripted ``link_loss`` faults act here, where the radio is: while one is in force nothing is read
 from or written to any port (bytes sent to the vehicle meanwhile are lost, as on a dead radio).
 """
@@ -13,13 +20,18 @@ from or written to any port (bytes sent to the vehicle meanwhile are lost, as on
 from __future__ import annotations
 
 import logging
-from typing import Protocol
+from typing import Callable, Protocol
 
 import numpy as np
+
+from chaser_bt.geo import LocalFrame
+from chaser_bt.radar.report import encode_scan
 
 from sitl.autopilot import Autopilot
 from sitl.mavlink_endpoint import Channel, MavlinkEndpoint
 from sitl.physics import PHYSICS_DT
+from sitl.radar.model import GroundRadar, ScanTruth
+from sitl.radar.udp import RadarUdpSender
 from sitl.scenario import Scenario
 
 __all__ = ["Port", "Simulator"]
@@ -54,6 +66,14 @@ class Simulator:
         self._ports: list[tuple[Port, Channel]] = []
         self._link_override: bool | None = None
         self._link_faults = tuple(f for f in scenario.faults if f.kind == "link_loss")
+        self.radar: GroundRadar | None = None
+        self.radar_truth: ScanTruth | None = None  # scoring only: the last scan's track -> object
+        self._radar_consumers: list[Callable[[bytes], None]] = []
+        self._next_scan_s = 0.0
+        if scenario.radar is not None:
+            self.radar = GroundRadar(scenario.radar, LocalFrame(scenario.home), np.random.default_rng([seed, 0x5ada7]))
+            if scenario.radar.udp_port is not None:
+                self._radar_consumers.append(RadarUdpSender(scenario.radar.udp_host, scenario.radar.udp_port))
 
     @property
     def time_s(self) -> float:
@@ -78,6 +98,35 @@ class Simulator:
         """Force the link up or down (tests); ``None`` returns it to the scenario's script."""
         self._link_override = up
 
+    def add_radar_consumer(self, consumer: Callable[[bytes], None]) -> None:
+        """Hand every radar datagram to ``consumer`` too (e.g. a ``QueueDatagramSource.push``)."""
+        self._radar_consumers.append(consumer)
+
+    def radar_objects(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """What the radar can see now: the vehicle while airborne and the scripted targets present."""
+        t = self.autopilot.time_s
+        truth = self.autopilot.truth
+        objs = {}
+        if not truth.on_ground:
+            objs["ownship"] = (np.asarray(truth.pos_enu, float), np.asarray(truth.vel_enu, float))
+        for tgt in self.scenario.targets:
+            if tgt.present(t):
+                objs[tgt.name] = (tgt.path.position_enu(t), tgt.path.velocity_enu(t))
+        return objs
+
+    def _radar_step(self) -> None:
+        t = self.autopilot.time_s
+        if self.radar is None or t < self._next_scan_s - 1e-9:
+            return
+        self._next_scan_s += self.radar.dt
+        out = self.radar.scan(round(t, 6), self.radar_objects())
+        if out is None:
+            return
+        scan, self.radar_truth = out
+        datagram = encode_scan(scan)
+        for consumer in self._radar_consumers:
+            consumer(datagram)
+
     def attach(self, port: Port) -> None:
         """Serve MAVLink on ``port`` from the next step on."""
         self._ports.append((port, self.endpoint.open_channel()))
@@ -95,6 +144,7 @@ class Simulator:
             if up:
                 endpoint.receive(data, channel)
         self.autopilot.step(self.dt)
+        self._radar_step()
         endpoint.update()
         out = endpoint.take_output()
         if out and self.link_up:  # the radio's state at the time the bytes are sent

@@ -19,7 +19,7 @@ import logging
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any, Callable, Mapping
 
 import py_trees
 
@@ -77,6 +77,8 @@ class MissionRunner:
         link: the vehicle link; polled by :meth:`run`, or by the caller in lock-step use.
         clock: mission time; vehicle time against the simulator, wall time on a real aircraft.
         rate_hz: tick rate in clock seconds.
+        resources: more shared objects for behaviours' ``setup()`` beside ``link`` and ``clock``
+            (e.g. ``radar=RadarFeed(...)``); a behaviour that needs one says so at setup.
         perf_counter: wall timer used only to measure how long a tick takes (diagnostics).
     """
 
@@ -87,6 +89,7 @@ class MissionRunner:
         clock: Clock,
         *,
         rate_hz: float = 10.0,
+        resources: Mapping[str, Any] | None = None,
         perf_counter: Callable[[], float] = time.perf_counter,
     ) -> None:
         if rate_hz <= 0:
@@ -95,6 +98,10 @@ class MissionRunner:
         self.link = link
         self.clock = clock
         self.period_s = 1.0 / rate_hz
+        self.resources = dict(resources or {})
+        clash = {"link", "clock"} & self.resources.keys()
+        if clash:
+            raise ValueError(f"resources may not replace {sorted(clash)}: pass them as link= and clock=")
         self._perf = perf_counter
         self._bt = py_trees.trees.BehaviourTree(tree.root)
         self._next_tick_s: float | None = None
@@ -110,9 +117,9 @@ class MissionRunner:
     # -- lifecycle --------------------------------------------------------------------------
 
     def setup(self) -> None:
-        """Hand the link and clock to every behaviour (py_trees ``setup(**kwargs)``)."""
+        """Hand the link, clock and resources to every behaviour (py_trees ``setup(**kwargs)``)."""
         self._publish(self.clock.now())
-        self._bt.setup(link=self.link, clock=self.clock)
+        self._bt.setup(link=self.link, clock=self.clock, **self.resources)
         self._set_up = True
 
     @property

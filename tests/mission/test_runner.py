@@ -146,3 +146,31 @@ def test_tick_log_records_each_status_change_once(vehicle, registry):
     r.stop("test")
     halted = {(c.node, c.old, c.new) for c in r.tick_log[3:]}
     assert halted == {("seq", "RUNNING", "INVALID"), ("spin", "RUNNING", "INVALID"), ("ok", "SUCCESS", "INVALID")}
+
+
+class NeedsRadar(py_trees.ports.BehaviourWithPorts):
+    """Keeps what setup() handed it."""
+
+    INPUT_PORTS: dict = {}
+    OUTPUT_PORTS: dict = {}
+    got: dict = {}
+
+    def setup(self, **kwargs):
+        NeedsRadar.got = kwargs
+
+    def update(self):
+        return Status.SUCCESS
+
+
+def test_resources_reach_every_behaviours_setup(vehicle, registry):
+    registry.register(NeedsRadar)
+    tree = load_tree_text("version: 1\ntrees:\n  T:\n    NeedsRadar\n", source="<test>", registry=registry)
+    feed = object()
+    MissionRunner(tree, vehicle.link, vehicle.clock, resources={"radar": feed}).setup()
+    assert NeedsRadar.got["radar"] is feed and NeedsRadar.got["link"] is vehicle.link
+
+
+def test_resources_cannot_replace_the_link_or_clock(vehicle, registry):
+    tree = load_tree_text("version: 1\ntrees:\n  T:\n    AlwaysSuccess\n", source="<test>", registry=registry)
+    with pytest.raises(ValueError, match="link"):
+        MissionRunner(tree, vehicle.link, vehicle.clock, resources={"link": None})

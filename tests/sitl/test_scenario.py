@@ -59,7 +59,7 @@ def test_overrides_reach_their_dataclasses():
     ({"home": HOME, "faults": [{"kind": "gps_loss"}]}, "faults[0].at_s", "required"),
     ({"home": HOME, "faults": {"at_s": 1}}, "faults", "a list"),
     ({"home": HOME, "time_limit_s": -5}, "time_limit_s", ">= 0"),
-    ({"home": HOME, "targets": []}, "targets", "unknown key"),
+    ({"home": HOME, "traffic": []}, "traffic", "unknown key"),
 ])
 def test_errors_name_the_source_and_key_path(doc, path, expected):
     with pytest.raises(ScenarioError) as e:

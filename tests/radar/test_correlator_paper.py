@@ -1,0 +1,114 @@
+"""Algorithm 1 on hand-built track sets: each failure mode with the answer worked out by hand.
+
+Scans are 4 Hz (times k/4 are exact in binary floating point, so window edges are exact);
+the ownship sits still at the origin and the other drone 50 m east, far outside epsilon = 10 m.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from chaser_bt.radar.correlator import Algorithm1Correlator, GatedCorrelator, TrackPoints, make_correlator
+
+OWN = np.zeros(3)
+OTHER = np.array([50.0, 0.0, 0.0])
+
+
+def run(tracks_at, t_end: float, correlator=None) -> dict[float, tuple[int | None, int | None]]:
+    """Feed scans at k/4 s; tracks_at(t) -> {id: position}. Returns t -> (reported id, stored A)."""
+    c = correlator or Algorithm1Correlator(epsilon_m=10.0)
+    out = {}
+    for k in range(int(t_end * 4) + 1):
+        t = k / 4
+        c.add_ownship(t, OWN, np.zeros(3))
+        tr = tracks_at(t)
+        if tr:
+            ids = list(tr)
+            c.add_tracks(TrackPoints.build(t, ids, [tr[i] for i in ids], np.zeros((len(ids), 3)), 1.0))
+        a = c.associate(t)
+        out[t] = (a.associated_id, c.associated_id)
+    return out
+
+
+def test_associates_the_track_on_the_gps_at_the_first_scan():
+    out = run(lambda t: {7: OTHER, 3: OWN}, 2.0)
+    assert out[0.0] == (3, 3)
+    assert all(v == (3, 3) for v in out.values())
+
+
+def test_no_detection_means_no_association():
+    out = run(lambda t: {7: OTHER}, 3.0)
+    assert all(v == (None, None) for v in out.values())
+
+
+def test_track_drop_new_id_taken_when_two_windows_agree():
+    # Track 1 ends at 10.0 and the ownship returns as track 2 at 10.5. Track 1 is active until
+    # 11.0 (reported within 1 s). From 11.0 m0 = 2 but m1, m2 have no winner among active tracks,
+    # so A stays 1 (reported as none: it is not active). At 12.5 the window (8.5, 10.5] holds
+    # track 2's first report, m1 = 2 = m0, and A becomes 2.
+    out = run(lambda t: {1: OWN} if t <= 10.0 else ({2: OWN} if t >= 10.5 else {}), 15.0)
+    assert all(out[t] == (1, 1) for t in out if t < 11.0)
+    assert all(out[t] == (None, 1) for t in out if 11.0 <= t < 12.5)
+    assert all(out[t] == (2, 2) for t in out if t >= 12.5)
+
+
+def test_track_swap_recovered_when_older_window_turns():
+    # Ids exchange after 20.0: track 2 now follows the ownship. N0 favours 2 from 21.25 (5 reports
+    # after the swap against 3 before; at 21.0 it is 4:4, a tie kept by A). m1 over (T-4, T-2] turns
+    # to 2 first at 23.25 (5:3; at 23.0 it is 4:4), so A stays 1 -- wrongly -- until 23.25.
+    def tracks(t):
+        return {1: OWN, 2: OTHER} if t <= 20.0 else {1: OTHER, 2: OWN}
+
+    out = run(tracks, 26.0)
+    assert all(out[t] == (1, 1) for t in out if t < 23.25)
+    assert all(out[t] == (2, 2) for t in out if t >= 23.25)
+
+
+def test_duplicate_track_does_not_steal_the_association():
+    # A parallel track 3 on the ownship from 5.0 to 9.0: equal counts, ties go to the current A.
+    out = run(lambda t: {1: OWN, 3: OWN + 0.5} if 5.0 <= t <= 9.0 else {1: OWN}, 12.0)
+    assert all(v == (1, 1) for v in out.values())
+
+
+def test_duplicates_from_the_start_take_the_lowest_id_and_leave_the_other_unassociated():
+    c = Algorithm1Correlator(epsilon_m=10.0)
+    out = run(lambda t: {9: OWN, 4: OWN + 1.0, 6: OTHER}, 1.0, c)
+    assert out[1.0] == (4, 4)
+    a = c.associate(1.0)
+    assert a.unassociated_ids == (6, 9)  # the paper filters on the associated id alone
+
+
+def test_epsilon_is_a_strict_threshold():
+    c = Algorithm1Correlator(epsilon_m=10.0)
+    out = run(lambda t: {1: np.array([10.0, 0.0, 0.0]), 2: np.array([0.0, 9.99, 0.0])}, 1.0, c)
+    assert out[1.0] == (2, 2)
+
+
+def test_gated_takes_a_new_id_after_a_drop_within_two_scans():
+    out = run(lambda t: {1: OWN} if t <= 10.0 else ({2: OWN} if t >= 10.5 else {}), 13.0, GatedCorrelator())
+    assert out[10.5] == (1, 1) and out[10.75] == (2, 2)
+
+
+def test_gated_recovers_after_a_swap_on_velocity_and_position():
+    def tracks(t):
+        return {1: OWN, 2: OTHER} if t <= 20.0 else {1: OTHER, 2: OWN}
+
+    out = run(tracks, 23.0, GatedCorrelator())
+    # Rejecting track 1 needs two inconsistent reports (20.25, 20.5); track 2 is confirmed by then.
+    assert out[20.25][0] != 2 and out[20.5] == (2, 2)
+    assert all(out[t] == (2, 2) for t in out if t >= 20.5)
+
+
+def test_gated_files_duplicates_under_the_ownship():
+    c = GatedCorrelator()
+    run(lambda t: {1: OWN, 3: OWN + 0.5, 6: OTHER}, 2.0, c)
+    a = c.associate(2.0)
+    assert a.associated_id == 1 and a.ownship_ids == {1, 3} and a.unassociated_ids == (6,)
+
+
+def test_make_correlator_by_name():
+    assert isinstance(make_correlator("alg1", epsilon_m=5.0), Algorithm1Correlator)
+    assert isinstance(make_correlator("gated"), GatedCorrelator)
+    with pytest.raises(ValueError, match="alg1, gated"):
+        make_correlator("nope")
