@@ -20,7 +20,7 @@ __all__ = ["main"]
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
 # Packages that bring their own sub-commands: each has ``add_command(subparsers)``.
-_COMMAND_MODULES = ("chaser_bt.radar.commands",)
+_COMMAND_MODULES = ("chaser_bt.tree.commands", "chaser_bt.radar.commands")
 
 log = logging.getLogger("chaser_bt.cli")
 
@@ -59,8 +59,9 @@ def _parser() -> argparse.ArgumentParser:
     p = command("validate", _validate, "check a tree against the behaviour declarations; list every problem")
     p.add_argument("tree", type=Path)
 
-    p = command("show", _show, "print a tree as a unicode outline with its port values")
+    p = command("show", _show, "print a tree as a unicode outline (or Graphviz dot) with its port values")
     p.add_argument("tree", type=Path)
+    p.add_argument("--format", choices=("unicode", "dot"), default="unicode", help="dot: pipe into `dot -Tpng`")
 
     command("nodes", _nodes, "list every node a tree can use, with its ports (from their declarations)")
 
@@ -121,8 +122,10 @@ def _validate(args: argparse.Namespace) -> int:
 
 def _show(args: argparse.Namespace) -> int:
     from chaser_bt.tree import render_tree
+    from chaser_bt.tree.display import render_dot
 
-    print(render_tree(_load_tree(args.tree)))
+    tree = _load_tree(args.tree)
+    print(render_dot(tree) if args.format == "dot" else render_tree(tree))
     return EXIT_OK
 
 

@@ -67,11 +67,19 @@ class InProcessVehicle:
     the vehicle's boot time as telemetry reports it, exactly as when flying the simulator remotely.
     """
 
-    def __init__(self, scenario: Scenario, seed: int, link_config: LinkConfig | None = None) -> None:
+    def __init__(
+        self,
+        scenario: Scenario,
+        seed: int,
+        link_config: LinkConfig | None = None,
+        ground_tap: Callable[[bytes], None] | None = None,
+    ) -> None:
+        """``ground_tap``, when given, sees every chunk of bytes the mission's link sends to the vehicle."""
         self.sim = Simulator(scenario, seed)
         vehicle_end, ground_end = byte_pipe()
         self.sim.attach(vehicle_end)
-        self.link = VehicleLink.over_pipe(ground_end, link_config or LinkConfig(), monotonic=lambda: self.sim.time_s)
+        end = ground_end if ground_tap is None else _TappedEnd(ground_end, ground_tap)
+        self.link = VehicleLink.over_pipe(end, link_config or LinkConfig(), monotonic=lambda: self.sim.time_s)
         self.clock = FunctionClock(lambda: self.link.state.t_boot_s)
 
     def step(self) -> None:
@@ -91,6 +99,20 @@ class InProcessVehicle:
         """Tick ``runner`` lock-step until its root finishes or ``timeout_s`` pass; its last status."""
         self.run_until(lambda: runner.tick_if_due() and runner.finished, timeout_s)
         return runner.status
+
+
+class _TappedEnd:
+    """A pipe end that shows every chunk written to it to ``tap`` first (to compare what missions send)."""
+
+    def __init__(self, end, tap: Callable[[bytes], None]) -> None:
+        self._end, self._tap = end, tap
+
+    def write(self, data: bytes) -> int:
+        self._tap(bytes(data))
+        return self._end.write(data)
+
+    def read(self) -> bytes:
+        return self._end.read()
 
 
 class _Scorer:
@@ -127,10 +149,12 @@ def rehearse(
     rate_hz: float = 10.0,
     link_config: LinkConfig | None = None,
     on_tick: Callable[[list[StatusChange]], None] | None = None,
+    ground_tap: Callable[[bytes], None] | None = None,
 ) -> RehearsalReport:
     """Fly ``tree`` against a fresh simulator built from ``scenario`` with ``seed``; score it.
 
     ``on_tick`` is called after every tick with the tick's status changes (``--show-ticks``).
+    ``ground_tap`` sees every chunk of bytes the mission sends to the vehicle (see :class:`InProcessVehicle`).
     """
     reset_blackboard()
     if not isinstance(tree, MissionTree):
@@ -138,7 +162,7 @@ def rehearse(
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
 
-    vehicle = InProcessVehicle(scenario, seed, link_config)
+    vehicle = InProcessVehicle(scenario, seed, link_config, ground_tap)
     sim = vehicle.sim
     runner = MissionRunner(tree, vehicle.link, vehicle.clock, rate_hz=rate_hz)
     if on_tick is not None:

@@ -91,6 +91,20 @@ def test_show_prints_the_outline_with_port_values(capsys):
     assert "east corner" in out and "100" in out and "RTL" in out
 
 
+def test_show_as_dot_is_a_graphviz_digraph(capsys):
+    assert main(["show", str(PATROL), "--format", "dot"]) == 0
+    out = capsys.readouterr().out
+    assert out.lstrip().startswith("digraph") and "east corner" in out
+
+
+def test_convert_yaml_to_xml_and_back_round_trips(tmp_path, capsys):
+    xml, back = tmp_path / "patrol.xml", tmp_path / "patrol.yaml"
+    assert main(["convert", str(PATROL), str(xml)]) == 0
+    assert 'BTCPP_format="4"' in xml.read_text()
+    assert main(["convert", str(xml), str(back)]) == 0
+    assert main(["validate", str(back)]) == 0
+
+
 def test_unreachable_vehicle_is_a_clear_error_within_ten_seconds():
     start = time.monotonic()
     out = subprocess.run(

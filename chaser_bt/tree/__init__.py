@@ -1,9 +1,11 @@
-"""Mission trees as data: port declarations, the behaviour registry, the YAML format, validation, loading.
+"""Mission trees as data: port declarations, the behaviour registry, YAML and BT.CPP v4 XML, validation, loading.
 
 Behaviours declare typed ports (:func:`input_port`, :func:`output_port`) and register with
-:func:`register_behaviour`; :func:`load_tree` reads a tree file, reports every problem at once
-(:class:`TreeError` of :class:`Problem`) and only then builds the py_trees tree. The format is
-documented in ``docs/trees.md``.
+:func:`register_behaviour`; :func:`load_tree` reads a tree file (``.xml``: BehaviorTree.CPP v4
+XML, else YAML; both give the same model), reports every problem at once (:class:`TreeError` of
+:class:`Problem`) and only then builds the py_trees tree. Conversion between the formats is in
+:mod:`chaser_bt.tree.conversion`, Groot2's node model in :mod:`chaser_bt.tree.node_model`. The
+formats are documented in ``docs/trees.md``.
 """
 
 from chaser_bt.tree.blackboard import reset_blackboard

@@ -19,6 +19,7 @@ from typing import Any
 
 import py_trees
 
+from chaser_bt.tree.preconditions import Preconditions
 from chaser_bt.tree.registry import NodeKind
 from chaser_bt.tree.validation import ResolvedNode
 
@@ -29,7 +30,10 @@ _literals: weakref.WeakKeyDictionary[py_trees.behaviour.Behaviour, dict[str, Any
 
 
 def build_node(resolved: ResolvedNode) -> py_trees.behaviour.Behaviour:
-    """Construct the behaviour for ``resolved`` and its subtree, with every port wired."""
+    """Construct the behaviour for ``resolved`` and its subtree, with every port wired.
+
+    A node with pre-conditions comes back wrapped in :class:`Preconditions` (same name).
+    """
     children = [build_node(child) for child in resolved.children]
     cls = resolved.node_type.cls
     if resolved.node_type.kind is NodeKind.DECORATOR:
@@ -39,6 +43,10 @@ def build_node(resolved: ResolvedNode) -> py_trees.behaviour.Behaviour:
         if children:
             node.add_children(children)
     wire_ports(node, resolved.remappings, resolved.literals, resolved.namespace)
+    if resolved.conditions:
+        wrapper = Preconditions(name=resolved.name, child=node, conditions=resolved.conditions)
+        wire_ports(wrapper, namespace=resolved.namespace)
+        return wrapper
     return node
 
 

@@ -17,7 +17,7 @@ from chaser_bt.tree.loader import MissionTree
 from chaser_bt.tree.ports import Port, type_name
 from chaser_bt.tree.registry import Registry
 
-__all__ = ["render_node_reference", "render_tree"]
+__all__ = ["render_dot", "render_node_reference", "render_tree"]
 
 _STATUS = {Status.SUCCESS: "✓", Status.FAILURE: "✕", Status.RUNNING: "*", Status.INVALID: "-"}
 
@@ -48,7 +48,51 @@ def _render(
         _render(child, tree, depth + 1, show_status, lines)
 
 
+def render_dot(tree: MissionTree) -> str:
+    """The tree as Graphviz dot text (``dot -Tpng``), shaped as py_trees' ``display.dot_tree`` draws it.
+
+    Composites are filled boxes, decorators ellipses, leaves plain text; each label holds the
+    name, the node id when it differs, and the port values. Needs no pydot.
+    """
+    lines = [f"digraph {_dot_quote(tree.name)} {{", "  graph [ordering=out];", '  node [fontname="Helvetica", fontsize=10];']
+    counter = iter(range(1 << 62))
+
+    def visit(node: py_trees.behaviour.Behaviour) -> str:
+        ident = f"n{next(counter)}"
+        parts = [node.name] if type(node).__name__ == node.name else [node.name, f"({type(node).__name__})"]
+        parts += [f"{port}={value}" for port, value in tree.wiring.get(node.id, {}).items()]
+        if isinstance(node, py_trees.composites.Composite):
+            shape = f'shape=box, style=filled, fillcolor="{_DOT_FILL.get(_symbol(node), "lightgrey")}"'
+        elif isinstance(node, py_trees.decorators.Decorator):
+            shape = 'shape=ellipse, style=filled, fillcolor="ghostwhite"'
+        else:
+            shape = "shape=plaintext"
+        label = "\\n".join(_dot_escape(part) for part in parts)
+        lines.append(f'  {ident} [label="{label}", {shape}];')
+        for child in node.children:
+            lines.append(f"  {ident} -> {visit(child)};")
+        return ident
+
+    visit(tree.root)
+    lines.append("}")
+    return "\n".join(lines) + "\n"
+
+
+_DOT_FILL = {"{-}": "orange", "[-]": "orange", "{-m}": "orange", "{o}": "cyan", "[o]": "cyan", "/_/": "gold"}
+
+
+def _dot_escape(text: str) -> str:
+    return text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
+
+
+def _dot_quote(text: str) -> str:
+    return '"' + _dot_escape(text) + '"'
+
+
 def _symbol(node: py_trees.behaviour.Behaviour) -> str:
+    symbol = getattr(node, "SYMBOL", None)
+    if isinstance(symbol, str):
+        return symbol
     if isinstance(node, (py_trees.composites.Parallel, Parallel)):
         return "/_/"
     if isinstance(node, py_trees.decorators.Decorator):

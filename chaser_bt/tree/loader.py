@@ -1,7 +1,8 @@
 """Loading a mission tree: read, validate everything, and only then build (DESIGN §4).
 
 A tree that fails validation never ticks: :func:`load_tree` raises :class:`TreeError` with
-every problem found, and builds nothing, when there is any.
+every problem found, and builds nothing, when there is any. ``.xml`` files are BT.CPP v4 XML,
+anything else YAML (:mod:`chaser_bt.tree.documents`); includes are read relative to the file.
 """
 
 from __future__ import annotations
@@ -13,10 +14,12 @@ from pathlib import Path
 import py_trees
 
 from chaser_bt.tree.builder import build_node
+from chaser_bt.tree.documents import merge_includes, parse_document, read_document
+from chaser_bt.tree.model import TreeDocument
 from chaser_bt.tree.errors import Problem, TreeError
+from chaser_bt.tree.preconditions import Preconditions
 from chaser_bt.tree.registry import Registry, default_registry
 from chaser_bt.tree.validation import Resolution, ResolvedNode, resolve_document
-from chaser_bt.tree.yaml_format import parse_yaml
 
 __all__ = ["MissionTree", "load_tree", "load_tree_text", "validate_tree", "validate_tree_text"]
 
@@ -41,20 +44,36 @@ class MissionTree:
 
 
 def load_tree(path: str | Path, registry: Registry | None = None) -> MissionTree:
-    """Read, validate and build the tree in ``path`` (YAML).
+    """Read, validate and build the tree in ``path`` (BT.CPP XML for ``.xml``, YAML otherwise).
 
     Raises:
         TreeError: listing every problem, one per line as ``file:line:col: message``.
     """
     path = Path(path)
-    tree = load_tree_text(_read(path), source=str(path), registry=registry)
+    document, problems = read_document(path)
+    tree = _build(document, problems, registry)
     tree.source = path
     return tree
 
 
-def load_tree_text(text: str, source: str = "<string>", registry: Registry | None = None) -> MissionTree:
-    """Validate and build tree YAML given as text; ``source`` names it in problems."""
-    resolution, problems = _resolve(text, source, registry)
+def load_tree_text(
+    text: str,
+    source: str = "<string>",
+    registry: Registry | None = None,
+    fmt: str | None = None,
+    base_dir: str | Path = ".",
+) -> MissionTree:
+    """Validate and build a tree given as text; ``source`` names it in problems.
+
+    Args:
+        fmt: ``"yaml"`` or ``"xml"``; default by ``source``'s extension, else XML when the text starts with '<'.
+        base_dir: the folder includes are relative to.
+    """
+    return _build(*_parse_text(text, source, fmt, base_dir), registry)
+
+
+def _build(document: TreeDocument, problems: list[Problem], registry: Registry | None) -> MissionTree:
+    resolution, problems = _resolve(document, problems, registry)
     if problems:
         raise TreeError(problems)
     assert resolution.root is not None and resolution.main is not None
@@ -65,29 +84,30 @@ def load_tree_text(text: str, source: str = "<string>", registry: Registry | Non
 
 
 def validate_tree(path: str | Path, registry: Registry | None = None) -> list[Problem]:
-    """Every problem in the tree file ``path``, sorted by position; empty when it is valid."""
-    path = Path(path)
-    try:
-        text = _read(path)
-    except TreeError as e:
-        return e.problems
-    return validate_tree_text(text, str(path), registry)
+    """Every problem in the tree file ``path`` (and its includes), sorted by position; empty when it is valid."""
+    return _resolve(*read_document(Path(path)), registry)[1]
 
 
-def validate_tree_text(text: str, source: str = "<string>", registry: Registry | None = None) -> list[Problem]:
-    """Every problem in tree YAML given as text."""
-    return _resolve(text, source, registry)[1]
+def validate_tree_text(
+    text: str,
+    source: str = "<string>",
+    registry: Registry | None = None,
+    fmt: str | None = None,
+    base_dir: str | Path = ".",
+) -> list[Problem]:
+    """Every problem in a tree given as text (see :func:`load_tree_text` for the arguments)."""
+    return _resolve(*_parse_text(text, source, fmt, base_dir), registry)[1]
 
 
-def _read(path: Path) -> str:
-    try:
-        return path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as e:
-        raise TreeError([Problem(str(path), 1, 1, f"cannot read tree file: {e}")]) from e
+def _parse_text(text: str, source: str, fmt: str | None, base_dir: str | Path) -> tuple[TreeDocument, list[Problem]]:
+    document, problems = parse_document(text, source, fmt)
+    merged, more = merge_includes(document, Path(base_dir))
+    return merged, problems + more
 
 
-def _resolve(text: str, source: str, registry: Registry | None) -> tuple[Resolution, list[Problem]]:
-    document, problems = parse_yaml(text, source)
+def _resolve(
+    document: TreeDocument, problems: list[Problem], registry: Registry | None
+) -> tuple[Resolution, list[Problem]]:
     resolution, more = resolve_document(document, registry if registry is not None else default_registry())
     return resolution, sorted(set(problems + more))
 
@@ -95,6 +115,9 @@ def _resolve(text: str, source: str, registry: Registry | None) -> tuple[Resolut
 def _collect_wiring(
     resolved: ResolvedNode, node: py_trees.behaviour.Behaviour, wiring: dict[uuid.UUID, dict[str, str]]
 ) -> None:
+    if isinstance(node, Preconditions):
+        wiring[node.id] = {c.kind: repr(c.expression.text) for c in node.conditions}
+        node = node.decorated
     wiring[node.id] = dict(resolved.wiring)
     for resolved_child, child in zip(resolved.children, node.children, strict=True):
         _collect_wiring(resolved_child, child, wiring)

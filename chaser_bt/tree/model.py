@@ -11,10 +11,30 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["Location", "PortArg", "SubTreeRef", "NodeSpec", "TreeSpec", "TreeDocument", "SUBTREE_ID"]
+__all__ = [
+    "Location",
+    "PortArg",
+    "SubTreeRef",
+    "NodeSpec",
+    "TreeSpec",
+    "TreeDocument",
+    "SUBTREE_ID",
+    "PRECONDITIONS",
+    "POSTCONDITIONS",
+    "MAX_DEPTH",
+]
 
 #: The node id that instantiates another tree of the same document (BT.CPP ``<SubTree ID=...>``).
 SUBTREE_ID = "SubTree"
+
+#: The deepest nesting of nodes a tree file may have (a guard against files built to exhaust the stack).
+MAX_DEPTH = 100
+
+#: BT.CPP v4's pre-condition attributes, in the order BT.CPP evaluates them.
+PRECONDITIONS = ("_failureIf", "_successIf", "_skipIf", "_while")
+
+#: BT.CPP v4's post-condition scripts, which this loader refuses (they assign to the blackboard).
+POSTCONDITIONS = ("_onSuccess", "_onFailure", "_post", "_onHalted")
 
 
 @dataclass(frozen=True)
@@ -31,12 +51,14 @@ class PortArg:
     """A port's value as written: a literal (typed by the format) or a ``"{key}"`` string.
 
     ``location`` is where the port is named, ``value_location`` where its value starts
-    (the same place in XML; a later line for a block list in YAML).
+    (the same place in XML; a later line for a block list in YAML). ``from_text`` marks a value
+    that is attribute text (XML), to be typed by its port (:func:`chaser_bt.tree.ports.literal_from_text`).
     """
 
     value: Any
     location: Location = field(compare=False)
     value_location: Location | None = field(default=None, compare=False)
+    from_text: bool = field(default=False, compare=False)
 
     @property
     def value_at(self) -> Location:
@@ -57,6 +79,7 @@ class NodeSpec:
     """One node as written: its id, optional instance name, port values and children.
 
     For a ``SubTree`` node, ``ports`` are the BT.CPP remappings of the subtree's keys.
+    ``conditions`` are BT.CPP pre-conditions (``_while`` ...) by attribute name, each an expression.
     ``unreadable_children`` counts children the parser already reported as malformed, so
     validation does not also call the node childless.
     """
@@ -68,6 +91,7 @@ class NodeSpec:
     children: list[NodeSpec] = field(default_factory=list)
     subtree: SubTreeRef | None = None
     unreadable_children: int = field(default=0, compare=False)
+    conditions: dict[str, PortArg] = field(default_factory=dict)
 
     @property
     def display_name(self) -> str:
@@ -86,7 +110,11 @@ class TreeSpec:
 
 @dataclass
 class TreeDocument:
-    """A whole tree file: format version, the tree to execute, mission inputs and the trees."""
+    """A whole tree file: format version, the tree to execute, mission inputs, the trees and included files.
+
+    ``includes`` are the paths as written (relative to the file's folder); the loader reads them
+    and merges their trees (:mod:`chaser_bt.tree.includes`).
+    """
 
     source: str
     version: Any = None
@@ -94,3 +122,4 @@ class TreeDocument:
     main_location: Location | None = field(default=None, compare=False)
     inputs: list[PortArg] = field(default_factory=list)
     trees: dict[str, TreeSpec] = field(default_factory=dict)
+    includes: list[PortArg] = field(default_factory=list)

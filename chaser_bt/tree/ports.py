@@ -15,6 +15,7 @@ exactly as in BehaviorTree.CPP (``{@key}`` is the root blackboard from inside a 
 from __future__ import annotations
 
 import enum
+import math
 import re
 import types
 import typing
@@ -22,6 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import py_trees.ports
+import yaml
 from py_trees.ports_utils import convert_str_to_type, is_instance_of_type
 
 __all__ = [
@@ -30,6 +32,8 @@ __all__ = [
     "output_port",
     "LiteralError",
     "coerce_literal",
+    "literal_from_text",
+    "literal_text",
     "has_literal_form",
     "type_name",
     "parse_reference",
@@ -222,3 +226,58 @@ def _mismatch(value: Any, data_type: Any) -> str:
 
 def _is_enum(data_type: Any) -> bool:
     return typing.get_origin(data_type) is None and isinstance(data_type, type) and issubclass(data_type, enum.Enum)
+
+
+def _is_any(data_type: Any) -> bool:
+    return data_type is object or data_type is Any
+
+
+def literal_from_text(text: str, data_type: Any) -> Any:
+    """Type attribute text (BT.CPP XML) by its port, or raise :class:`LiteralError`.
+
+    Typed ports convert as any string literal does (``convert_str_to_type``); a port that takes
+    any type reads the text as a YAML flow value (``3`` -> 3, ``[1, 2]`` -> [1, 2], ``'3'`` -> "3"),
+    so a value means the same whether a tree was written in YAML or in XML.
+    """
+    if _is_any(data_type):
+        try:
+            value = yaml.safe_load(text)
+        except yaml.YAMLError:
+            return text
+        return text if value is None or isinstance(value, dict) else value
+    return coerce_literal(text, data_type)
+
+
+def literal_text(value: Any, data_type: Any) -> str:
+    """The attribute text for a literal, such that :func:`literal_from_text` gives the same value back.
+
+    Raises:
+        LiteralError: the value does not fit the port, or has no text form (a list item with
+            ``;`` or ``,`` in it, a mapping).
+    """
+    if _is_any(data_type):
+        if isinstance(value, enum.Enum):
+            value = value.name
+        text = yaml.safe_dump(value, default_flow_style=True, allow_unicode=True, width=math.inf)
+        text = text.removesuffix("\n").removesuffix("\n...").strip()
+        if "\n" in text:
+            raise LiteralError(f"{value!r} has no one-line text form")
+        return text
+    if isinstance(value, str) and not (typing.get_origin(data_type) is list or data_type is list):
+        return value
+    return _text(coerce_literal(value, data_type))
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, enum.Enum):
+        return value.name
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, list):
+        items = [_text(item) for item in value]
+        if any(";" in item or "," in item or item != item.strip() or not item for item in items):
+            raise LiteralError(f"list {value!r} has an item that a ';'-separated text cannot hold")
+        return ";".join(items)
+    return str(value)

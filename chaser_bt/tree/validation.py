@@ -22,18 +22,21 @@ from py_trees.ports_utils import sanitize_name_for_blackboard_use
 
 from chaser_bt.tree.control import SubTree
 from chaser_bt.tree.errors import Problem, UnknownNode
-from chaser_bt.tree.model import SUBTREE_ID, Location, NodeSpec, PortArg, TreeDocument
+from chaser_bt.tree.expressions import ExpressionError, parse_expression
+from chaser_bt.tree.model import MAX_DEPTH, PRECONDITIONS, SUBTREE_ID, Location, NodeSpec, PortArg, TreeDocument
 from chaser_bt.tree.ports import (
     SAME_AS_PORT,
     LiteralError,
     coerce_literal,
     is_reference_text,
+    literal_from_text,
     parse_reference,
     type_name,
 )
+from chaser_bt.tree.preconditions import Condition, Constant
 from chaser_bt.tree.registry import NodeKind, NodeType, Registry
 
-__all__ = ["ResolvedNode", "Resolution", "resolve_document", "SUBTREE_TYPE"]
+__all__ = ["ResolvedNode", "Resolution", "resolve_document", "typed_literal", "SUBTREE_TYPE"]
 
 #: The node type of a SubTree instance (a pass-through wrapper around the instantiated tree).
 SUBTREE_TYPE = NodeType(SUBTREE_ID, SubTree, NodeKind.DECORATOR)
@@ -47,6 +50,7 @@ class ResolvedNode:
         remappings: port -> absolute blackboard key (``{key}`` references and default keys).
         literals: port -> typed value, stored on the blackboard privately for that node.
         wiring: port -> how a person reads it ("20", "{/alt}"), for display.
+        conditions: BT.CPP pre-conditions, in BT.CPP's order of evaluation.
     """
 
     node_type: NodeType
@@ -57,6 +61,7 @@ class ResolvedNode:
     literals: dict[str, Any] = field(default_factory=dict)
     wiring: dict[str, str] = field(default_factory=dict)
     children: list[ResolvedNode] = field(default_factory=list)
+    conditions: list[Condition] = field(default_factory=list)
 
 
 @dataclass
@@ -73,6 +78,17 @@ def resolve_document(document: TreeDocument, registry: Registry) -> tuple[Resolu
     return _Resolver(document, registry).run()
 
 
+def typed_literal(value: Any, data_type: Any, from_text: bool) -> Any:
+    """A literal as its port's type: attribute text (XML) is read by :func:`literal_from_text`.
+
+    Raises:
+        LiteralError: the value does not fit the port.
+    """
+    if from_text and isinstance(value, str):
+        return literal_from_text(value, data_type)
+    return coerce_literal(value, data_type)
+
+
 def _show(value: Any) -> str:
     """A literal as a person reads it: enum members by name, strings quoted."""
     if isinstance(value, enum.Enum):
@@ -86,6 +102,7 @@ class _Literal:
 
     value: Any
     location: Location
+    from_text: bool = False
 
 
 _Binding = str | _Literal
@@ -207,6 +224,39 @@ class _Resolver:
     # ---- nodes
 
     def node(self, spec: NodeSpec, scope: _Scope, stack: tuple[str, ...]) -> ResolvedNode | None:
+        resolved = self.plain_node(spec, scope, stack)
+        conditions = self.conditions(spec, scope)
+        if resolved is not None:
+            resolved.conditions = conditions
+        return resolved
+
+    def conditions(self, spec: NodeSpec, scope: _Scope) -> list[Condition]:
+        """Parse the node's pre-conditions; their variables resolve in the node's own scope, as its ports do."""
+        conditions = []
+        for kind in PRECONDITIONS:
+            arg = spec.conditions.get(kind)
+            if arg is None:
+                continue
+            try:
+                expression = parse_expression(str(arg.value))
+            except ExpressionError as e:
+                self.problem(arg.value_at, f"{kind} of {spec.node_id}: {e}")
+                continue
+            bindings: dict[str, str | Constant] = {}
+            for variable in expression.variables:
+                binding = scope.resolve(variable)
+                if isinstance(binding, _Literal):
+                    value = binding.value
+                    if binding.from_text and isinstance(value, str):
+                        value = literal_from_text(value, object)
+                    bindings[variable] = Constant(value)
+                else:
+                    bindings[variable] = binding
+                    self.reads.append(_Read(binding, arg.value_at, f"{kind} of {spec.node_id}"))
+            conditions.append(Condition(kind, expression, bindings))
+        return conditions
+
+    def plain_node(self, spec: NodeSpec, scope: _Scope, stack: tuple[str, ...]) -> ResolvedNode | None:
         if spec.node_id == SUBTREE_ID:
             return self.subtree(spec, scope, stack)
         children = [self.node(child, scope, stack) for child in spec.children]
@@ -251,7 +301,7 @@ class _Resolver:
                     arg.value_at, f"output port '{port}' of {spec.node_id} takes a {{key}} reference, got {arg.value!r}"
                 )
                 return
-            self.literal(spec, port, declaration, arg.value, arg.value_at, resolved)
+            self.literal(spec, port, declaration, arg.value, arg.value_at, resolved, arg.from_text)
             return
         try:
             key = parse_reference(arg.value)
@@ -267,7 +317,7 @@ class _Resolver:
                     "which its SubTree sets to a literal",
                 )
                 return
-            self.literal(spec, port, declaration, binding.value, binding.location, resolved)
+            self.literal(spec, port, declaration, binding.value, binding.location, resolved, binding.from_text)
             return
         resolved.remappings[port] = binding
         resolved.wiring[port] = "{" + binding + "}"
@@ -277,10 +327,17 @@ class _Resolver:
             self.reads.append(_Read(binding, arg.value_at, f"port '{port}' of {spec.node_id}"))
 
     def literal(
-        self, spec: NodeSpec, port: str, declaration: Any, value: Any, location: Location, resolved: ResolvedNode
+        self,
+        spec: NodeSpec,
+        port: str,
+        declaration: Any,
+        value: Any,
+        location: Location,
+        resolved: ResolvedNode,
+        from_text: bool = False,
     ) -> None:
         try:
-            resolved.literals[port] = coerce_literal(value, declaration.data_type)
+            resolved.literals[port] = typed_literal(value, declaration.data_type, from_text)
         except LiteralError as e:
             self.problem(location, f"port '{port}' of {spec.node_id}: {e}")
             return
@@ -335,6 +392,9 @@ class _Resolver:
         if ref.tree_id in stack:
             self.problem(ref.location, f"SubTree '{ref.tree_id}' is recursive: {' -> '.join((*stack, ref.tree_id))}")
             return None
+        if len(stack) >= MAX_DEPTH:
+            self.problem(ref.location, f"SubTrees nested deeper than {MAX_DEPTH}")
+            return None
         self.instantiated.add(ref.tree_id)
         used = set(self.keys_used(ref.tree_id, set()))
         bindings: dict[str, _Binding] = {}
@@ -343,7 +403,7 @@ class _Resolver:
                 listed = ", ".join(sorted(used)) or "none"
                 self.problem(arg.location, f"SubTree '{ref.tree_id}' uses no key '{port}'; its keys: {listed}")
             if not is_reference_text(arg.value):
-                bindings[port] = _Literal(arg.value, arg.value_at)
+                bindings[port] = _Literal(arg.value, arg.value_at, arg.from_text)
                 continue
             try:
                 key = parse_reference(arg.value)
@@ -380,6 +440,12 @@ class _Resolver:
                         continue
                     if not key.startswith("@"):
                         yield port if key == SAME_AS_PORT else key
+            for arg in node.conditions.values():
+                try:
+                    variables = parse_expression(str(arg.value)).variables
+                except ExpressionError:
+                    continue
+                yield from (v for v in variables if not v.startswith("@"))
             if node.subtree is not None and node.subtree.autoremap:
                 yield from self.keys_used(node.subtree.tree_id, visited)
 

@@ -13,8 +13,10 @@
             - RTL
 
 A node is a one-key mapping ``{NodeId: attributes}`` or a bare ``NodeId``. Attributes are
-``name``, ``children`` (composites) or ``child`` (decorators), and the node's ports; a
-``SubTree`` node takes ``ID``, ``_autoremap`` and the subtree's key remappings, as in BT.CPP.
+``name``, ``children`` (composites) or ``child`` (decorators), BT.CPP's pre-conditions
+(``_while``, ``_skipIf``, ``_successIf``, ``_failureIf``) and the node's ports; a ``SubTree``
+node takes ``ID``, ``_autoremap`` and the subtree's key remappings, as in BT.CPP. ``includes``
+lists other tree files (YAML or XML) whose trees this file may instantiate.
 The file is composed with ``yaml.compose`` (not ``safe_load``) so every node keeps its
 start mark; scalars are then constructed with PyYAML's safe constructor, so values are typed
 exactly as ``safe_load`` would type them. The full format is in ``docs/trees.md``.
@@ -28,12 +30,23 @@ from typing import Any
 import yaml
 
 from chaser_bt.tree.errors import Problem
-from chaser_bt.tree.model import SUBTREE_ID, Location, NodeSpec, PortArg, SubTreeRef, TreeDocument, TreeSpec
+from chaser_bt.tree.model import (
+    MAX_DEPTH,
+    POSTCONDITIONS,
+    PRECONDITIONS,
+    SUBTREE_ID,
+    Location,
+    NodeSpec,
+    PortArg,
+    SubTreeRef,
+    TreeDocument,
+    TreeSpec,
+)
 
 __all__ = ["FORMAT_VERSION", "parse_yaml", "dump_yaml"]
 
 FORMAT_VERSION = 1
-_TOP_LEVEL = ("version", "main", "inputs", "trees")
+_TOP_LEVEL = ("version", "main", "inputs", "includes", "trees")
 
 
 def parse_yaml(text: str, source: str = "<string>") -> tuple[TreeDocument, list[Problem]]:
@@ -46,7 +59,15 @@ class _Parser:
         self.text = text
         self.source = source
         self.problems: list[Problem] = []
-        self.loader = yaml.SafeLoader(text)
+        # PyYAML checks the characters as the loader is made: a NUL or other control character
+        # raises ReaderError here, before parsing starts.
+        try:
+            self.loader: yaml.SafeLoader | None = yaml.SafeLoader(text)
+        except yaml.reader.ReaderError as e:
+            self.loader = None
+            before = text[: e.position]
+            line, column = before.count("\n") + 1, e.position - (before.rfind("\n") + 1) + 1
+            self.problems.append(Problem(source, line, column, f"YAML error: {e.reason} (character {e.character!r})"))
 
     # ---- helpers
 
@@ -59,10 +80,14 @@ class _Parser:
         self.problems.append(Problem(loc.file, loc.line, loc.column, message))
 
     def value(self, node: yaml.Node) -> tuple[bool, Any]:
+        assert self.loader is not None
         try:
             return True, self.loader.construct_object(node, deep=True)
         except yaml.YAMLError as e:
             self.problem(node, f"cannot read value: {getattr(e, 'problem', None) or e}")
+            return False, None
+        except RecursionError:
+            self.problem(node, "cannot read value: nested too deeply")
             return False, None
 
     def string(self, node: yaml.Node, what: str) -> str | None:
@@ -88,8 +113,13 @@ class _Parser:
 
     def parse(self) -> tuple[TreeDocument, list[Problem]]:
         document = TreeDocument(source=self.source)
+        if self.loader is None:
+            return document, self.problems
         try:
             root = self.loader.get_single_node()
+        except RecursionError:
+            self.problems.append(Problem(self.source, 1, 1, "YAML nested too deeply to read"))
+            return document, self.problems
         except yaml.MarkedYAMLError as e:
             mark = e.problem_mark or e.context_mark
             line, column = (mark.line + 1, mark.column + 1) if mark else (1, 1)
@@ -117,6 +147,8 @@ class _Parser:
             document.main_location = self.at(fields["main"])
         if "inputs" in fields:
             document.inputs = self.inputs(fields["inputs"])
+        if "includes" in fields:
+            document.includes = self.includes(fields["includes"])
         if "trees" not in fields:
             self.problems.append(Problem(self.source, 1, 1, "missing 'trees': the tree definitions"))
         else:
@@ -145,6 +177,17 @@ class _Parser:
                 keys.append(PortArg(key, self.at(item)))
         return keys
 
+    def includes(self, node: yaml.Node) -> list[PortArg]:
+        if not isinstance(node, yaml.SequenceNode):
+            self.problem(node, f"includes must be a list of tree file paths, got {_describe(node)}")
+            return []
+        paths = []
+        for item in node.value:
+            path = self.string(item, "an included file path")
+            if path is not None:
+                paths.append(PortArg(path, self.at(item)))
+        return paths
+
     def trees(self, node: yaml.Node) -> dict[str, TreeSpec]:
         if not isinstance(node, yaml.MappingNode) or not node.value:
             self.problem(node, f"trees must map tree ids to their root nodes, got {_describe(node)}")
@@ -156,7 +199,10 @@ class _Parser:
 
     # ---- nodes
 
-    def node(self, node: yaml.Node) -> NodeSpec | None:
+    def node(self, node: yaml.Node, depth: int = 1) -> NodeSpec | None:
+        if depth > MAX_DEPTH:
+            self.problem(node, f"nodes nested deeper than {MAX_DEPTH}")
+            return None
         if isinstance(node, yaml.ScalarNode):
             node_id = self.string(node, "a node")
             return None if node_id is None else NodeSpec(node_id, self.at(node))
@@ -185,10 +231,10 @@ class _Parser:
         else:
             self.problem(attrs_node, f"the attributes of {node_id} must be a mapping, got {_describe(attrs_node)}")
             return spec
-        self.attributes(spec, attrs)
+        self.attributes(spec, attrs, depth)
         return spec
 
-    def attributes(self, spec: NodeSpec, attrs: list[tuple[str, yaml.Node, yaml.Node]]) -> None:
+    def attributes(self, spec: NodeSpec, attrs: list[tuple[str, yaml.Node, yaml.Node]], depth: int = 1) -> None:
         subtree_id: str | None = None
         autoremap = False
         child_keys = [key_node for key, key_node, _ in attrs if key in ("children", "child")]
@@ -198,9 +244,19 @@ class _Parser:
             if key == "name":
                 spec.name = self.string(value_node, "name")
             elif key in ("children", "child"):
-                items = self.children(value_node, spec.node_id) if key == "children" else [self.node(value_node)]
+                items = (
+                    self.children(value_node, spec.node_id, depth + 1)
+                    if key == "children"
+                    else [self.node(value_node, depth + 1)]
+                )
                 spec.children.extend(child for child in items if child is not None)
                 spec.unreadable_children += sum(1 for child in items if child is None)
+            elif key in PRECONDITIONS:
+                expression = self.string(value_node, f"{key} (a blackboard expression)")
+                if expression is not None:
+                    spec.conditions[key] = PortArg(expression, self.at(key_node), self.at(value_node))
+            elif key in POSTCONDITIONS:
+                self.problem(key_node, f"post-condition {key} is not supported: write the assignment as a node")
             elif spec.node_id == SUBTREE_ID and key == "ID":
                 subtree_id = self.string(value_node, "SubTree ID")
             elif spec.node_id == SUBTREE_ID and key == "_autoremap":
@@ -218,12 +274,12 @@ class _Parser:
             else:
                 spec.subtree = SubTreeRef(subtree_id, autoremap, spec.location)
 
-    def children(self, node: yaml.Node, parent_id: str) -> list[NodeSpec | None]:
+    def children(self, node: yaml.Node, parent_id: str, depth: int = 2) -> list[NodeSpec | None]:
         """The nodes of a ``children`` list, None where one was unreadable (and reported)."""
         if not isinstance(node, yaml.SequenceNode):
             self.problem(node, f"children of {parent_id} must be a list of nodes, got {_describe(node)}")
             return [None]
-        return [self.node(item) for item in node.value]
+        return [self.node(item, depth) for item in node.value]
 
 
 def _describe(node: yaml.Node) -> str:
@@ -246,6 +302,8 @@ def dump_yaml(document: TreeDocument, decorator_ids: frozenset[str] = frozenset(
         data["main"] = document.main
     if document.inputs:
         data["inputs"] = [arg.value for arg in document.inputs]
+    if document.includes:
+        data["includes"] = [arg.value for arg in document.includes]
     data["trees"] = {
         tree_id: _node_data(tree.root, decorator_ids)
         for tree_id, tree in document.trees.items()
@@ -262,6 +320,7 @@ def _node_data(node: NodeSpec, decorator_ids: frozenset[str]) -> Any:
             attrs["_autoremap"] = True
     if node.name:
         attrs["name"] = node.name
+    attrs.update({key: arg.value for key, arg in node.conditions.items()})
     attrs.update({port: arg.value for port, arg in node.ports.items()})
     if node.node_id in decorator_ids and len(node.children) == 1:
         attrs["child"] = _node_data(node.children[0], decorator_ids)

@@ -118,8 +118,9 @@ def clock() -> ManualClock:
 def build(registry: Registry, script: Script, clock: ManualClock) -> Callable[[str], MissionTree]:
     """Load a one-tree file from the body of its root node and set it up with the script and clock."""
 
-    def _build(body: str) -> MissionTree:
-        text = "version: 1\ntrees:\n  T:\n" + textwrap.indent(textwrap.dedent(body).strip("\n"), "    ") + "\n"
+    def _build(body: str, inputs: tuple[str, ...] = ()) -> MissionTree:
+        listed = f"inputs: [{', '.join(inputs)}]\n" if inputs else ""
+        text = f"version: 1\n{listed}trees:\n  T:\n" + textwrap.indent(textwrap.dedent(body).strip("\n"), "    ") + "\n"
         tree = load_tree_text(text, registry=registry)
         py_trees.trees.setup(tree.root, clock=clock, script=script)
         return tree
@@ -136,3 +137,20 @@ def tick() -> Callable[[MissionTree], Status]:
         return tree.root.status
 
     return _tick
+
+
+@pytest.fixture
+def build_xml(registry: Registry, script: Script, clock: ManualClock) -> Callable[..., MissionTree]:
+    """Load BT.CPP v4 XML (the body of <root>, or of one <BehaviorTree ID="T">) and set it up."""
+
+    def _build(body: str, *, trees: bool = False, main: str = "T", inputs: str = "") -> MissionTree:
+        body = textwrap.dedent(body).strip("\n")
+        if not trees:
+            body = f'<BehaviorTree ID="{main}">\n{body}\n</BehaviorTree>'
+        extra = f' mission_inputs="{inputs}"' if inputs else ""
+        text = f'<root BTCPP_format="4" main_tree_to_execute="{main}"{extra}>\n{body}\n</root>\n'
+        tree = load_tree_text(text, source="t.xml", registry=registry)
+        py_trees.trees.setup(tree.root, clock=clock, script=script)
+        return tree
+
+    return _build

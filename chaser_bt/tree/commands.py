@@ -1,0 +1,73 @@
+"""``chaser-bt convert`` and ``chaser-bt export-model``: the tree-authoring commands.
+
+:func:`add_command` adds both subcommands to the CLI's subparsers; each handler returns an exit
+code: 0 done, 2 bad input (a message naming file, line and reason on stderr).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+__all__ = ["add_command", "add_convert_command", "add_export_model_command"]
+
+EXIT_OK, EXIT_BAD_INPUT = 0, 2
+
+
+def add_command(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``convert`` and ``export-model``."""
+    add_convert_command(subparsers)
+    add_export_model_command(subparsers)
+
+
+def add_convert_command(subparsers: argparse._SubParsersAction) -> None:
+    help_ = "convert a tree between YAML and BehaviorTree.CPP v4 XML (by extension), checking it round-trips"
+    p = subparsers.add_parser("convert", help=help_, description=help_)
+    p.add_argument("source", type=Path, help="tree file to read (.xml = BT.CPP XML, else YAML)")
+    p.add_argument("target", type=Path, help="tree file to write (.xml = BT.CPP XML, else YAML)")
+    p.set_defaults(handler=_convert)
+
+
+def add_export_model_command(subparsers: argparse._SubParsersAction) -> None:
+    help_ = "write Groot2's <TreeNodesModel> of every registered node (from their port declarations)"
+    p = subparsers.add_parser("export-model", help=help_, description=help_)
+    p.add_argument("-o", "--output", type=Path, help="file to write (default: standard output)")
+    p.add_argument("--include-builtin", action="store_true", help="also list BT.CPP's own nodes (Groot2 knows them)")
+    p.set_defaults(handler=_export_model)
+
+
+def _convert(args: argparse.Namespace) -> int:
+    from chaser_bt.tree.conversion import convert_file
+    from chaser_bt.tree.errors import TreeError
+
+    if not args.source.is_file():
+        print(f"chaser-bt: {args.source}: no such file", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    try:
+        convert_file(args.source, args.target)
+    except TreeError as e:
+        print("\n".join(str(p) for p in e.problems), file=sys.stderr)
+        print(f"chaser-bt: {args.source}: not converted", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except OSError as e:
+        print(f"chaser-bt: {args.target}: {e.strerror or e}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    print(f"{args.source} -> {args.target}")
+    return EXIT_OK
+
+
+def _export_model(args: argparse.Namespace) -> int:
+    from chaser_bt.tree.node_model import node_model_xml
+    from chaser_bt.tree.registry import default_registry
+
+    text = node_model_xml(default_registry(), include_builtin=args.include_builtin)
+    if args.output is None:
+        sys.stdout.write(text)
+        return EXIT_OK
+    try:
+        args.output.write_text(text, encoding="utf-8")
+    except OSError as e:
+        print(f"chaser-bt: {args.output}: {e.strerror or e}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    return EXIT_OK

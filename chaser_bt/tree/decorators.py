@@ -1,0 +1,257 @@
+"""BehaviorTree.CPP v4's decorators on py_trees' Decorator, with BT.CPP's semantics.
+
+py_trees' Decorator always ticks its child once and then asks ``update()``; BT.CPP's looping and
+timed decorators tick it several times, or not at all, so each decorator here implements
+:meth:`DecoratorNode.step` instead. Time comes only from the mission Clock handed to
+``setup(clock=...)`` (DESIGN §3), never from ``time.monotonic`` as py_trees' own Timeout does.
+A skipped child (INVALID right after its tick, see :mod:`chaser_bt.tree.node_base`) makes the
+decorator skipped too, as in BT.CPP.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Generator, Iterator, Mapping
+from typing import Any, ClassVar
+
+import py_trees
+from py_trees.common import Status
+
+from chaser_bt.mission.clock import Clock
+from chaser_bt.tree.node_base import SKIPPED, ControlPorts, PortCheck, check_count, now, require_clock
+from chaser_bt.tree.ports import Port, input_port
+
+__all__ = [
+    "DecoratorNode",
+    "Inverter",
+    "ForceSuccess",
+    "ForceFailure",
+    "Repeat",
+    "RetryUntilSuccessful",
+    "Timeout",
+    "Delay",
+    "RunOnce",
+    "KeepRunningUntilFailure",
+    "SubTree",
+]
+
+Behaviour = py_trees.behaviour.Behaviour
+Steps = Generator[Behaviour, None, Status]
+
+
+class DecoratorNode(ControlPorts, py_trees.decorators.Decorator, register=False):
+    """A decorator whose :meth:`step` decides when to tick the child and returns the new status."""
+
+    def tick(self) -> Iterator[Behaviour]:
+        if self.status != Status.RUNNING:
+            self.initialise()
+        new_status = yield from self.step()
+        if new_status == Status.RUNNING:
+            self.status = Status.RUNNING
+        else:
+            self.stop(new_status)
+        yield self
+
+    def step(self) -> Steps:
+        yield from self.decorated.tick()
+        return self.decorated.status
+
+    def update(self) -> Status:
+        """Unused: ``tick()`` sets the status (py_trees declares ``update`` abstract)."""
+        return self.status
+
+    def stop(self, new_status: Status = Status.INVALID) -> None:
+        # Halt a running child; reset a finished one on a halt. A child that never ran is left
+        # alone, so it sees no spurious terminate().
+        self.terminate(new_status)
+        child = self.decorated
+        if child.status == Status.RUNNING or (new_status == Status.INVALID and child.status != Status.INVALID):
+            child.stop(Status.INVALID)
+        self.status = new_status
+        self.iterator = self.tick()
+
+
+class Inverter(DecoratorNode, register=False):
+    """BT.CPP Inverter: SUCCESS <-> FAILURE; RUNNING and SKIPPED pass through."""
+
+    def step(self) -> Steps:
+        status = yield from super().step()
+        flipped = {Status.SUCCESS: Status.FAILURE, Status.FAILURE: Status.SUCCESS}.get(status, status)
+        self.feedback_message = (
+            f"{status.name.lower()} -> {flipped.name.lower()}" if flipped != status else self.decorated.feedback_message
+        )
+        return flipped
+
+
+class ForceSuccess(DecoratorNode, register=False):
+    """BT.CPP ForceSuccess: a finished child's status becomes SUCCESS; RUNNING and SKIPPED pass through."""
+
+    def step(self) -> Steps:
+        status = yield from super().step()
+        self.feedback_message = "failure is success" if status == Status.FAILURE else self.decorated.feedback_message
+        return Status.SUCCESS if status == Status.FAILURE else status
+
+
+class ForceFailure(DecoratorNode, register=False):
+    """BT.CPP ForceFailure: a finished child's status becomes FAILURE; RUNNING and SKIPPED pass through."""
+
+    def step(self) -> Steps:
+        status = yield from super().step()
+        self.feedback_message = "success is failure" if status == Status.SUCCESS else self.decorated.feedback_message
+        return Status.FAILURE if status == Status.SUCCESS else status
+
+
+class _LoopingDecorator(DecoratorNode, register=False):
+    """Ticks its child again within the same tick while ``AGAIN_ON`` says so (BT.CPP's loop).
+
+    With a count of -1 (forever) it returns RUNNING between rounds instead, so a child that
+    finishes instantly cannot hang the tick (BT.CPP would spin inside one tick).
+    """
+
+    COUNT_PORT: ClassVar[str]
+    #: The child status that starts another round (SUCCESS for Repeat, FAILURE for Retry).
+    AGAIN_ON: ClassVar[Status]
+
+    def __init__(self, name: str, child: Behaviour) -> None:
+        super().__init__(name=name, child=child)
+        self.rounds = 0
+        self._limit = 0
+
+    @classmethod
+    def check_ports(cls, values: Mapping[str, Any], child_count: int) -> PortCheck:
+        return check_count(values, cls.COUNT_PORT, -1)
+
+    def initialise(self) -> None:
+        self.rounds = 0
+        self._limit = self.get_input(self.COUNT_PORT)
+
+    def step(self) -> Steps:
+        new_status = Status.SUCCESS if self.AGAIN_ON == Status.SUCCESS else Status.FAILURE
+        while self._limit == -1 or self.rounds < self._limit:
+            yield from self.decorated.tick()
+            child_status = self.decorated.status
+            if child_status != self.AGAIN_ON:
+                new_status = child_status
+                break
+            self.rounds += 1
+            if self._limit == -1:
+                new_status = Status.RUNNING
+                break
+        self.feedback_message = f"{self.rounds}/{self._limit if self._limit >= 0 else 'inf'}"
+        return new_status
+
+
+class Repeat(_LoopingDecorator, register=False):
+    """BT.CPP Repeat: runs the child ``num_cycles`` times while it succeeds; a FAILURE ends it."""
+
+    INPUT_PORTS: ClassVar[dict[str, Port]] = {
+        "num_cycles": input_port(int, "times to run the child (-1 = forever)"),
+    }
+    COUNT_PORT = "num_cycles"
+    AGAIN_ON = Status.SUCCESS
+
+
+class RetryUntilSuccessful(_LoopingDecorator, register=False):
+    """BT.CPP RetryUntilSuccessful: retries a failing child up to ``num_attempts`` times."""
+
+    INPUT_PORTS: ClassVar[dict[str, Port]] = {
+        "num_attempts": input_port(int, "attempts before giving up (-1 = forever)"),
+    }
+    COUNT_PORT = "num_attempts"
+    AGAIN_ON = Status.FAILURE
+
+
+class _ClockedDecorator(DecoratorNode, register=False):
+    def __init__(self, name: str, child: Behaviour) -> None:
+        super().__init__(name=name, child=child)
+        self._clock: Clock | None = None
+
+    def setup(self, **kwargs: Any) -> None:
+        self._clock = require_clock(self, kwargs)
+
+
+class Timeout(_ClockedDecorator, register=False):
+    """BT.CPP Timeout: halts the child and FAILS once ``msec`` have passed on the mission clock (0 = never)."""
+
+    INPUT_PORTS: ClassVar[dict[str, Port]] = {
+        "msec": input_port(int, "milliseconds the child may run (0 = no limit)"),
+    }
+
+    def __init__(self, name: str, child: Behaviour) -> None:
+        super().__init__(name=name, child=child)
+        self._deadline: float | None = None
+
+    @classmethod
+    def check_ports(cls, values: Mapping[str, Any], child_count: int) -> PortCheck:
+        return check_count(values, "msec", 0)
+
+    def initialise(self) -> None:
+        msec = self.get_input("msec")
+        self._deadline = None if msec <= 0 else now(self, self._clock) + msec / 1000.0
+
+    def step(self) -> Steps:
+        if self._deadline is not None and now(self, self._clock) >= self._deadline:
+            self.feedback_message = f"timed out after {self.get_input('msec')} ms"
+            return Status.FAILURE
+        return (yield from super().step())
+
+
+class Delay(_ClockedDecorator, register=False):
+    """BT.CPP Delay: RUNNING for ``delay_msec`` on the mission clock, then ticks the child."""
+
+    INPUT_PORTS: ClassVar[dict[str, Port]] = {
+        "delay_msec": input_port(int, "milliseconds to wait before ticking the child"),
+    }
+
+    def __init__(self, name: str, child: Behaviour) -> None:
+        super().__init__(name=name, child=child)
+        self._start = 0.0
+
+    @classmethod
+    def check_ports(cls, values: Mapping[str, Any], child_count: int) -> PortCheck:
+        return check_count(values, "delay_msec", 0)
+
+    def initialise(self) -> None:
+        self._start = now(self, self._clock)
+
+    def step(self) -> Steps:
+        if now(self, self._clock) - self._start < self.get_input("delay_msec") / 1000.0:
+            self.feedback_message = "delaying"
+            return Status.RUNNING
+        return (yield from super().step())
+
+
+class RunOnce(DecoratorNode, register=False):
+    """BT.CPP RunOnce: runs the child to completion once; afterwards SKIPPED (``then_skip``) or its first result."""
+
+    INPUT_PORTS: ClassVar[dict[str, Port]] = {
+        "then_skip": input_port(bool, "after the first run: skip (true) or repeat the first result (false)", default=True),
+    }
+
+    def __init__(self, name: str, child: Behaviour) -> None:
+        super().__init__(name=name, child=child)
+        self.result: Status | None = None
+
+    def step(self) -> Steps:
+        if self.result is not None:
+            self.feedback_message = f"ran once: {self.result.name}"
+            return SKIPPED if self.get_input("then_skip") else self.result
+        status = yield from super().step()
+        if status in (Status.SUCCESS, Status.FAILURE):
+            self.result = status
+        return status
+
+
+class KeepRunningUntilFailure(DecoratorNode, register=False):
+    """BT.CPP KeepRunningUntilFailure: RUNNING while the child succeeds (restarting it each tick); FAILURE when it fails."""
+
+    def step(self) -> Steps:
+        status = yield from super().step()
+        return Status.RUNNING if status == Status.SUCCESS else status
+
+
+class SubTree(DecoratorNode, register=False):
+    """BT.CPP SubTree instance: passes its tree's status through; marks the blackboard scope boundary.
+
+    Not in :data:`~chaser_bt.tree.control.CONTROL_NODES`: trees instantiate it with a ``SubTree``
+    node, never by id.
+    """
