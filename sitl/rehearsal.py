@@ -79,7 +79,10 @@ class InProcessVehicle:
         vehicle_end, ground_end = byte_pipe()
         self.sim.attach(vehicle_end)
         end = ground_end if ground_tap is None else _TappedEnd(ground_end, ground_tap)
-        self.link = VehicleLink.over_pipe(end, link_config or LinkConfig(), monotonic=lambda: self.sim.time_s)
+        # The pipe also carries the intruders' own telemetry: name the vehicle's system id, as a
+        # ground station configured for one aircraft would, rather than lock onto whoever speaks first.
+        config = link_config or LinkConfig(target_sysid=self.sim.endpoint.sysid)
+        self.link = VehicleLink.over_pipe(end, config, monotonic=lambda: self.sim.time_s)
         self.clock = FunctionClock(lambda: self.link.state.t_boot_s)
 
     def step(self) -> None:

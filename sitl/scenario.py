@@ -23,6 +23,7 @@ from sitl.airframe import AirframeParams
 from sitl.params import ParamStore
 from sitl.physics import WindParams
 from sitl.radar.config import RadarClutter, RadarConfig, RadarFailureRates
+from sitl.intruders import TRAJECTORY_KINDS, IntruderLimits, IntruderSpec
 from sitl.targets import CirclePath, TargetPath, WaypointPath
 
 __all__ = ["ScenarioError", "BootParams", "Fault", "FAULT_KINDS", "Scenario", "ScriptedTarget", "load_scenario"]
@@ -101,6 +102,7 @@ class Scenario:
     start_unix_s: float = DEFAULT_START_UNIX_S
     radar: RadarConfig | None = None
     targets: tuple[ScriptedTarget, ...] = ()
+    intruders: tuple[IntruderSpec, ...] = ()
 
     def fault_active(self, kind: str, t: float) -> bool:
         """Whether any fault of ``kind`` is in force at sim time ``t``."""
@@ -164,7 +166,8 @@ class _Parser:
 
     def scenario(self, d: Any) -> Scenario:
         top = self.mapping(d, "", ("name", "home", "wind", "airframe", "params", "boot",
-                                   "faults", "time_limit_s", "start_unix_s", "radar", "targets"))
+                                   "faults", "time_limit_s", "start_unix_s", "radar", "targets",
+                                   "intruders"))
         if d is None:
             raise self.fail("", "a scenario mapping (the document is empty)")
         name = top.get("name", "unnamed")
@@ -183,7 +186,9 @@ class _Parser:
             time_limit_s=self.number(top, "time_limit_s", "", 600.0, minimum=0.0),
             start_unix_s=self.number(top, "start_unix_s", "", DEFAULT_START_UNIX_S, minimum=0.0),
             radar=self.radar(top.get("radar")),
-            targets=self.targets(top.get("targets")),
+            targets=(targets := self.targets(top.get("targets"))),
+            intruders=self.intruders(top.get("intruders"), {t.name for t in targets},
+                                     int(self.params(top.get("params")).get("SYSID_THISMAV", 1))),
         )
 
     def home(self, d: Any) -> tuple[GeoPoint, float]:
@@ -394,3 +399,82 @@ class _Parser:
             raise self.fail(f"{path}.loop", "true or false", loop)
         points = tuple(self._vector(v, f"{path}.points_enu_m[{k}]") for k, v in enumerate(pts))
         return WaypointPath(points, self._positive(m, "speed_mps", path, 5.0), loop)
+
+    # -- intruders: Phantom-like drones with their own MAVLink (sitl/intruders.py) ----------------
+
+    _TRAJECTORY_KEYS = {
+        "rectangle": ("corners_enu_m", "speed_mps", "pause_s"),
+        "circle": ("center_enu_m", "radius_m", "speed_mps", "clockwise", "phase_deg"),
+        "figure_eight": ("center_enu_m", "half_length_m", "speed_mps", "heading_deg"),
+        "random_waypoints": ("center_enu_m", "half_extent_m", "alt_min_m", "alt_max_m", "speed_min_mps",
+                             "speed_max_mps", "pause_max_s"),
+        "evasive": ("center_enu_m", "half_extent_m", "alt_min_m", "alt_max_m", "cruise_speed_mps"),
+    }
+
+    def intruders(self, d: Any, taken: set[str], vehicle_sysid: int) -> tuple[IntruderSpec, ...]:
+        if d is None:
+            return ()
+        if not isinstance(d, list):
+            raise self.fail("intruders", "a list of intruders", d)
+        out, names, sysids = [], set(taken), {vehicle_sysid}
+        for i, item in enumerate(d):
+            path = f"intruders[{i}]"
+            m = self.mapping(item, path, ("name", "sysid", "start_enu_m", "start_s", "telemetry_hz", "limits")
+                             + TRAJECTORY_KINDS)
+            name = m.get("name")
+            if not isinstance(name, str) or not name or name == "ownship" or name in names:
+                raise self.fail(f"{path}.name", "a name not used by another target or intruder, other than 'ownship'",
+                                name)
+            names.add(name)
+            sysid = m.get("sysid", 2)
+            if isinstance(sysid, bool) or not isinstance(sysid, int) or not 1 <= sysid <= 254 or sysid in sysids:
+                raise self.fail(f"{path}.sysid", "a MAVLink system id 1..254 not used by the vehicle or another intruder",
+                                sysid)
+            sysids.add(sysid)
+            if "start_enu_m" not in m:
+                raise self.fail(f"{path}.start_enu_m", "a list of 3 numbers (required key is missing)")
+            start = self._vector(m["start_enu_m"], f"{path}.start_enu_m")
+            kinds = [k for k in TRAJECTORY_KINDS if k in m]
+            if len(kinds) != 1:
+                raise self.fail(path, "exactly one of the keys " + ", ".join(TRAJECTORY_KINDS))
+            kind = kinds[0]
+            params = self._trajectory(kind, m[kind], f"{path}.{kind}", start)
+            lim = self.mapping(m.get("limits"), f"{path}.limits", tuple(f.name for f in dataclasses.fields(IntruderLimits)))
+            dl = IntruderLimits()
+            limits = IntruderLimits(**{k: self._positive(lim, k, f"{path}.limits", getattr(dl, k)) for k in dl.__dict__})
+            out.append(IntruderSpec(name, sysid, start, kind, params, self.number(m, "start_s", path, 0.0, 0.0),
+                                    self._positive(m, "telemetry_hz", path, 5.0), limits))
+        return tuple(out)
+
+    def _trajectory(self, kind: str, d: Any, path: str, start: tuple[float, float, float]) -> dict:
+        m = self.mapping(d, path, self._TRAJECTORY_KEYS[kind])
+        p: dict[str, Any] = {}
+        if "center_enu_m" in m:
+            p["center"] = self._vector(m["center_enu_m"], f"{path}.center_enu_m")
+        for key in m:
+            if key in ("center_enu_m", "corners_enu_m", "clockwise", "phase_deg", "heading_deg"):
+                continue
+            if key in ("pause_s", "pause_max_s", "alt_min_m"):
+                p[key] = self.number(m, key, path, 0.0, 0.0)
+            else:
+                p[key] = self._positive(m, key, path, 1.0)
+        if kind == "rectangle":
+            pts = m.get("corners_enu_m")
+            if not isinstance(pts, list) or len(pts) < 2:
+                raise self.fail(f"{path}.corners_enu_m", "a list of at least two [east, north, up] corners", pts)
+            p["corners"] = tuple(self._vector(v, f"{path}.corners_enu_m[{k}]") for k, v in enumerate(pts))
+        if kind == "circle":
+            cw = m.get("clockwise", False)
+            if not isinstance(cw, bool):
+                raise self.fail(f"{path}.clockwise", "true or false", cw)
+            p["clockwise"] = cw
+            c = p.get("center", start)
+            p["phase_rad"] = math.radians(self.number(m, "phase_deg", path, math.degrees(
+                math.atan2(start[1] - c[1], start[0] - c[0]))))
+        if kind == "figure_eight":
+            p["heading_rad"] = math.radians(self.number(m, "heading_deg", path, 0.0))
+        for lo, hi in (("alt_min_m", "alt_max_m"), ("speed_min_mps", "speed_max_mps")):
+            if lo in m and hi in m and m[lo] > m[hi]:
+                raise self.fail(f"{path}.{hi}", f"a number >= {path}.{lo} ({m[lo]})", m[hi])
+        return p
+

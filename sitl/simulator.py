@@ -13,6 +13,12 @@ sends it over UDP (``radar.udp_port``) and to every in-process consumer
 (:meth:`Simulator.add_radar_consumer`). The radar has its own random stream, so adding one does
 not change the vehicle's noise.
 
+The scenario's ``intruders`` (:mod:`sitl.intruders`: Phantom-like drones) fly here too, one step
+with the vehicle; each sends its own MAVLink (its system id, HEARTBEAT and GLOBAL_POSITION_INT) to
+every port after the vehicle's bytes of that step, on its own radio: the vehicle's ``link_loss``
+faults do not silence it. The radar sees intruders like scripted targets. Each intruder's pilot
+draws from its own random stream.
+
 Scripted ``link_loss`` faults act here, where the radio is: while one is in force nothing is read
 from or written to any port (bytes sent to the vehicle meanwhile are lost, as on a dead radio).
 """
@@ -28,6 +34,7 @@ from chaser_bt.geo import LocalFrame
 from chaser_bt.radar.report import encode_scan
 
 from sitl.autopilot import Autopilot
+from sitl.intruders import Intruder
 from sitl.mavlink_endpoint import Channel, MavlinkEndpoint
 from sitl.physics import PHYSICS_DT
 from sitl.radar.model import GroundRadar, ScanTruth
@@ -70,6 +77,9 @@ class Simulator:
         self.radar_truth: ScanTruth | None = None  # scoring only: the last scan's track -> object
         self._radar_consumers: list[Callable[[bytes], None]] = []
         self._next_scan_s = 0.0
+        frame = LocalFrame(scenario.home)
+        self.intruders = [Intruder(spec, np.random.default_rng([seed, 0x1d7, k]), frame)
+                          for k, spec in enumerate(scenario.intruders)]
         if scenario.radar is not None:
             self.radar = GroundRadar(scenario.radar, LocalFrame(scenario.home), np.random.default_rng([seed, 0x5ada7]))
             if scenario.radar.udp_port is not None:
@@ -112,6 +122,8 @@ class Simulator:
         for tgt in self.scenario.targets:
             if tgt.present(t):
                 objs[tgt.name] = (tgt.path.position_enu(t), tgt.path.velocity_enu(t))
+        for intruder in self.intruders:
+            objs[intruder.name] = (intruder.pos.copy(), intruder.vel.copy())
         return objs
 
     def _radar_step(self) -> None:
@@ -144,10 +156,17 @@ class Simulator:
             if up:
                 endpoint.receive(data, channel)
         self.autopilot.step(self.dt)
+        t = self.autopilot.time_s
+        for intruder in self.intruders:
+            intruder.step(t, self.dt)
         self._radar_step()
         endpoint.update()
         out = endpoint.take_output()
-        if out and self.link_up:  # the radio's state at the time the bytes are sent
+        if not self.link_up:  # the radio's state at the time the bytes are sent
+            out = b""
+        for intruder in self.intruders:  # the intruders' own radios
+            out += intruder.telemetry_bytes(round(t, 6))
+        if out:
             for port, _ in self._ports:
                 port.write(out)
 

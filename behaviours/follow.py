@@ -1,0 +1,244 @@
+"""Follow behaviours (paper section 3.2): keep the target in view from above and behind.
+
+- :class:`TargetTelemetryCue` writes the target's own MAVLink position to ``/target/telemetry``.
+- :class:`FollowGlobal` follows that cue (the paper's "follow global coordinates").
+- :class:`CVFollow` follows the camera's :class:`~chaser_bt.cue.TargetEstimate` from
+  ``/target/estimate``, optionally with range from telemetry (as the paper's July 2021 flight).
+- :class:`HoverOnStale` guards any follow subtree: target data older than ``max_age_s`` halts the
+  child and sends hover; fresh data ticks the child again.
+
+Both follow leaves run :class:`~chaser_bt.control.follow.FollowController`, fly ALT_HOLD through
+RC override (``output: alt_hold``, the paper's way) or GUIDED velocity (``output: guided``), switch
+the vehicle into that mode themselves (centred throttle first, DESIGN §5), hover at once when the
+target data is stale, and hover on halt or failure (CommandingBehaviour).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from typing import Any, Iterator
+
+import numpy as np
+import py_trees
+
+from behaviours.base import CommandingBehaviour, VehicleBehaviour, state_port
+from chaser_bt.control.follow import FollowConfig, FollowController
+from chaser_bt.control.sticks import StickMap
+from chaser_bt.cue import TargetCue, TargetEstimate
+from chaser_bt.target_telemetry import TargetTelemetry
+from chaser_bt.tree import NodeKind, input_port, output_port, register_behaviour
+
+Status = py_trees.common.Status
+
+TELEMETRY_KEY = "/target/telemetry"
+STICK_PARAMS = ("ANGLE_MAX", "PILOT_Y_RATE", "PILOT_SPEED_UP", "PILOT_SPEED_DN", "THR_DZ", "RC1_DZ", "RC2_DZ", "RC4_DZ")
+ESTIMATE_KEY = "/target/estimate"
+
+
+class FollowOutput(enum.Enum):
+    """How the follow loops reach the autopilot."""
+
+    ALT_HOLD = "alt_hold"  # RC_CHANNELS_OVERRIDE sticks in ALT_HOLD (the paper)
+    GUIDED = "guided"  # SET_POSITION_TARGET velocity + yaw rate in GUIDED
+
+
+def _optional(node: py_trees.ports.PortsMixin, port: str) -> Any:
+    try:
+        return node.get_input(port)
+    except Exception:  # nothing written to the key yet
+        return None
+
+
+@register_behaviour
+class TargetTelemetryCue(VehicleBehaviour):
+    """Write the target's own MAVLink position (another system id) to ``cue``; FAILURE if none fresh.
+
+    Uses the ``target_telemetry`` resource (a TargetTelemetry) when the runner passes one, else
+    listens on the vehicle link itself from setup on.
+    """
+
+    NODE_KIND = NodeKind.ACTION
+    INPUT_PORTS = {
+        "sysid": input_port(int, "Target's MAVLink system id (0 = whichever foreign system spoke last)", default=0),
+        "max_age_s": input_port(float, "A position older than this is no cue (s)", default=2.0),
+        "state": state_port(),
+    }
+    OUTPUT_PORTS = {"cue": output_port(TargetCue, "The target's position", default_key=TELEMETRY_KEY)}
+
+    def setup(self, **kwargs: Any) -> None:
+        super().setup(**kwargs)
+        tel = kwargs.get("target_telemetry")
+        self.telemetry = tel if isinstance(tel, TargetTelemetry) else TargetTelemetry.attach(self.link, self._now)
+
+    def update(self) -> Status:
+        sysid = self.get_input("sysid") or None
+        cue = self.telemetry.cue(self._link().frame, sysid)
+        if cue is None or cue.age(self._now()) > self.get_input("max_age_s"):
+            self.feedback_message = "no fresh target telemetry"
+            return Status.FAILURE
+        self._set_output("cue", cue)
+        self.feedback_message = f"target {cue.track_id} at {cue.position_enu.round(1).tolist()}"
+        return Status.SUCCESS
+
+
+class _Follow(CommandingBehaviour):
+    """Shared by the follow leaves: mode switch, controller, one command per control step."""
+
+    COMMON_PORTS = {
+        "slant_range_m": input_port(float, "Slant range set-point (m)", default=40.0),
+        "elevation_deg": input_port(float, "Elevation above the target set-point (deg)", default=40.0),
+        "output": input_port(FollowOutput, "alt_hold (RC override) or guided (velocity)", default=FollowOutput.ALT_HOLD),
+        "use_roll": input_port(bool, "Roll loop: full horizontal control", default=False),
+        "feed_forward": input_port(bool, "Feed the target's velocity forward", default=False),
+        "stale_after_s": input_port(float, "Hover when target data is older than this (s)", default=2.0),
+        "give_up_after_s": input_port(float, "FAILURE after this long stale (s); 0 = keep hovering", default=0.0),
+        "state": state_port(),
+    }
+
+    def target(self) -> TargetCue | None:
+        return _optional(self, "target")
+
+    def initialise(self) -> None:
+        out = self.get_input("output")
+        self._mode = "ALT_HOLD" if out is FollowOutput.ALT_HOLD else "GUIDED"
+        config = FollowConfig(slant_range_m=self.get_input("slant_range_m"),
+                              elevation_rad=math.radians(self.get_input("elevation_deg")),
+                              use_roll=self.get_input("use_roll"), feed_forward=self.get_input("feed_forward"),
+                              stale_after_s=self.get_input("stale_after_s"))
+        link = self._link()
+        for name in STICK_PARAMS:  # the stick mapping is the vehicle's: ask for its parameters
+            if name not in link.params:
+                link.request_param(name)
+        self.controller = FollowController(config, StickMap.from_params(link.params))
+        self._mode_cmd = None
+        self._stale_since: float | None = None
+        self._sent_t: float | None = None
+        if self.state.mode != self._mode:
+            if self._mode == "ALT_HOLD":
+                link.rc_override(1500, 1500, 1500, 1500)  # centred throttle before ALT_HOLD or it sinks
+            self._mode_cmd = link.set_mode(self._mode)
+
+    def update(self) -> Status:
+        link, state, now = self._link(), self.state, self._now()
+        if self._mode_cmd is not None:
+            if not self._mode_cmd.done:
+                self.feedback_message = f"switching to {self._mode}"
+                return Status.RUNNING
+            if not self._mode_cmd.ok:
+                self.feedback_message = f"{self._mode} refused: {self._mode_cmd.reason}"
+                return Status.FAILURE
+            self._mode_cmd = None
+        if state.mode != self._mode:
+            self.feedback_message = f"vehicle left {self._mode} for {state.mode}"
+            return Status.FAILURE
+        self.controller.stick_map = StickMap.from_params(link.params)  # as the parameters arrive
+        cmd = self.controller.update(now, state.position_enu, state.velocity_enu, state.yaw_enu_rad, self.target())
+        if cmd.hover:
+            self._stale_since = now if self._stale_since is None else self._stale_since
+            link.hover()
+            self.feedback_message = f"hover: {cmd.reason}"
+            give_up = self.get_input("give_up_after_s")
+            return Status.FAILURE if give_up > 0 and now - self._stale_since >= give_up else Status.RUNNING
+        self._stale_since = None
+        if cmd.t != self._sent_t:  # a new control step (5 Hz); the link re-sends held sticks itself
+            self._sent_t = cmd.t
+            if self._mode == "ALT_HOLD":
+                link.rc_override(*cmd.sticks.as_tuple())
+            else:
+                link.velocity_enu(cmd.velocity_enu, yaw_rate=cmd.yaw_rate)
+        pv = cmd.pv
+        self.feedback_message = (f"az {math.degrees(pv.azimuth_rad):+.0f} deg, ground {pv.ground_range_m:.1f} m, "
+                                 f"height {pv.rel_height_m:.1f} m")
+        return Status.RUNNING
+
+
+@register_behaviour
+class FollowGlobal(_Follow):
+    """Follow the target's global position (its telemetry cue) with the paper's three PID loops; RUNNING."""
+
+    INPUT_PORTS = {"target": input_port(TargetCue, "Target position cue", required=False, default_key=TELEMETRY_KEY),
+                   **_Follow.COMMON_PORTS}
+    OUTPUT_PORTS: dict = {}
+
+
+@register_behaviour
+class CVFollow(_Follow):
+    """Follow the camera's target estimate (bearing from vision); range from ``range_cue`` when fresh; RUNNING."""
+
+    INPUT_PORTS = {
+        "target": input_port(TargetEstimate, "Vision target estimate", required=False, default_key=ESTIMATE_KEY),
+        "range_cue": input_port(TargetCue, "Optional cue whose distance replaces the vision range (GPS range)",
+                                required=False, default_key=TELEMETRY_KEY),
+        **_Follow.COMMON_PORTS,
+    }
+    OUTPUT_PORTS: dict = {}
+
+    def target(self) -> TargetCue | None:
+        est: TargetEstimate | None = _optional(self, "target")
+        ranged: TargetCue | None = _optional(self, "range_cue")
+        if est is None or ranged is None or ranged.age(self._now()) > self.get_input("stale_after_s"):
+            return est
+        camera = est.position_enu - est.range_m * est.bearing_enu if math.isfinite(est.range_m) else self.state.position_enu
+        rng = float(np.linalg.norm(ranged.position_enu - camera))
+        return TargetCue(t=est.t, position_enu=camera + rng * est.bearing_enu, covariance_enu=est.covariance_enu,
+                         velocity_enu=est.velocity_enu, source="vision+telemetry-range", track_id=est.track_id)
+
+
+@register_behaviour
+class HoverOnStale(py_trees.ports.PortsMixin, py_trees.decorators.Decorator):
+    """Tick the child while target data is fresh; when older than ``max_age_s``, halt it and hover.
+
+    RUNNING while hovering; FAILURE once stale for ``give_up_after_s`` (0 = never), so a fallback
+    can take over (paper section 2.2.1: from follow back to fly-to-cue or search).
+    """
+
+    INPUT_PORTS = {
+        "target": input_port(TargetCue, "The data whose age is watched", required=False, default_key=ESTIMATE_KEY),
+        "max_age_s": input_port(float, "Stale after this long without new data (s)", default=2.0),
+        "give_up_after_s": input_port(float, "FAILURE after this long stale (s); 0 = never", default=0.0),
+    }
+    OUTPUT_PORTS: dict = {}
+
+    def __init__(self, name: str, child: py_trees.behaviour.Behaviour) -> None:
+        super().__init__(name=name, child=child)
+        self.link = None
+        self.clock = None
+        self._stale_since: float | None = None
+
+    def setup(self, **kwargs: Any) -> None:
+        self.link, self.clock = kwargs.get("link"), kwargs.get("clock")
+        if self.link is None or self.clock is None:
+            raise KeyError(f"{self.name}: setup() needs link and clock (the mission runner passes them)")
+
+    def initialise(self) -> None:
+        self._stale_since = None
+
+    def tick(self) -> Iterator[py_trees.behaviour.Behaviour]:
+        if self.status != Status.RUNNING:
+            self.initialise()
+        now = self.clock.now()
+        cue = _optional(self, "target")
+        if cue is None or cue.age(now) > self.get_input("max_age_s"):
+            if self.decorated.status == Status.RUNNING:
+                self.decorated.stop(Status.INVALID)  # the child hovers on halt
+            self.link.hover()
+            self._stale_since = now if self._stale_since is None else self._stale_since
+            give_up = self.get_input("give_up_after_s")
+            self.feedback_message = "target data stale: hover"
+            self.status = Status.FAILURE if give_up > 0 and now - self._stale_since >= give_up else Status.RUNNING
+            if self.status != Status.RUNNING:
+                self.stop(self.status)
+            yield self
+            return
+        self._stale_since = None
+        yield from self.decorated.tick()
+        self.status = self.decorated.status
+        self.feedback_message = self.decorated.feedback_message
+        if self.status != Status.RUNNING:
+            self.stop(self.status)
+        yield self
+
+    def update(self) -> Status:
+        """Unused: :meth:`tick` decides the status."""
+        return self.status

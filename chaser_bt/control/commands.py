@@ -1,0 +1,74 @@
+"""``chaser-bt chase-geometry``: the recommended follow position for a camera and a target.
+
+Wired into the CLI by ``add_command(subparsers)``. Prints the slant range and elevation (and the
+ground range / relative height set-points they become) with what they buy: pixels on target and
+the reaction times to a vertical and a horizontal dash; ``--plot`` writes the trade-off figure
+(the paper's figure 4), ``--json`` prints one JSON object.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+
+from chaser_bt.control.chase_geometry import ChaseInputs, recommend, trade_off_figure
+
+__all__ = ["add_command"]
+
+
+def add_command(subparsers: argparse._SubParsersAction) -> None:
+    d = ChaseInputs()
+    p = subparsers.add_parser("chase-geometry", help="recommend the follow position (slant range, elevation)",
+                              description=__doc__.splitlines()[0])
+    p.add_argument("--hfov-deg", type=float, default=math.degrees(d.hfov_rad), help="camera horizontal FOV (deg)")
+    p.add_argument("--vfov-deg", type=float, default=math.degrees(d.vfov_rad), help="camera vertical FOV (deg)")
+    p.add_argument("--width-px", type=int, default=d.width_px)
+    p.add_argument("--height-px", type=int, default=d.height_px)
+    p.add_argument("--target-size-m", type=float, nargs=3, metavar=("WIDTH", "DEPTH", "HEIGHT"),
+                   default=[d.target_width_m, d.target_depth_m, d.target_height_m], help="target box (m)")
+    p.add_argument("--speed-h", type=float, default=d.speed_h_mps, help="target horizontal dash speed (m/s)")
+    p.add_argument("--speed-up", type=float, default=d.speed_up_mps, help="target climb speed (m/s)")
+    p.add_argument("--speed-down", type=float, default=d.speed_down_mps, help="target descent speed (m/s)")
+    p.add_argument("--min-pixels", type=float, default=d.min_pixels, help="pixels on target the detector needs")
+    p.add_argument("--plot", metavar="PNG", help="write the trade-off figure here")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(handler=run)
+
+
+def _inputs(args: argparse.Namespace) -> ChaseInputs:
+    checks = {"--hfov-deg": 0 < args.hfov_deg < 180, "--vfov-deg": 0 < args.vfov_deg < 180,
+              "--width-px": args.width_px > 0, "--height-px": args.height_px > 0,
+              "--target-size-m": all(x > 0 for x in args.target_size_m), "--speed-h": args.speed_h > 0,
+              "--speed-up": args.speed_up > 0, "--speed-down": args.speed_down > 0, "--min-pixels": args.min_pixels > 0}
+    bad = [k for k, ok in checks.items() if not ok]
+    if bad:
+        raise ValueError(f"chase-geometry: {', '.join(bad)}: expected positive values (FOVs below 180 deg)")
+    w, dpt, h = args.target_size_m
+    return ChaseInputs(hfov_rad=math.radians(args.hfov_deg), vfov_rad=math.radians(args.vfov_deg),
+                       width_px=args.width_px, height_px=args.height_px, target_width_m=w, target_depth_m=dpt,
+                       target_height_m=h, speed_h_mps=args.speed_h, speed_up_mps=args.speed_up,
+                       speed_down_mps=args.speed_down, min_pixels=args.min_pixels)
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        inputs = _inputs(args)
+        rec = recommend(inputs)
+    except ValueError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    if args.plot:
+        trade_off_figure(inputs, args.plot)
+    d = rec.as_dict()
+    if args.json:
+        print(json.dumps(d))
+    else:
+        print(f"follow from {d['slant_range_m']:g} m slant range at {d['elevation_deg']:g} deg elevation "
+              f"(ground range {d['ground_range_m']:g} m, {d['rel_height_m']:g} m above the target)")
+        print(f"  pixels on target {d['pixels_on_target']:g}; time to react: vertical dash {d['t_vertical_dash_s']:g} s, "
+              f"horizontal dash {d['t_horizontal_dash_s']:g} s")
+        if args.plot:
+            print(f"  trade-off figure: {args.plot}")
+    return 0
