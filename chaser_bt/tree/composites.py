@@ -159,10 +159,15 @@ class SequenceWithMemory(Sequence, register=False):
     RESUME_AFTER_FAILURE = True
 
 
-class ReactiveSequence(ControlNode, register=False):
-    """BT.CPP ReactiveSequence: re-ticks every child from the first on every tick; a failure halts the running one."""
+class _Reactive(ControlNode, register=False):
+    """Re-ticks every child from the first on every tick (BT.CPP's reactive nodes).
 
-    SYMBOL = "[-]"
+    A RUNNING child halts every later one and makes the node RUNNING; a child returning
+    ``DECIDES`` ends the node with that status; otherwise ``OTHERWISE`` (SKIPPED if all skipped).
+    """
+
+    DECIDES: Status
+    OTHERWISE: Status
 
     def start(self) -> None:
         _reset_children(self)
@@ -175,9 +180,16 @@ class ReactiveSequence(ControlNode, register=False):
             if status == Status.RUNNING:
                 self.halt_from(index + 1)
                 return Status.RUNNING
-            if status == Status.FAILURE:
-                return Status.FAILURE
-        return SKIPPED if all_skipped else Status.SUCCESS
+            if status == self.DECIDES:
+                return status
+        return SKIPPED if all_skipped else self.OTHERWISE
+
+
+class ReactiveSequence(_Reactive, register=False):
+    """BT.CPP ReactiveSequence: re-ticks every child from the first on every tick; a failure halts the running one."""
+
+    SYMBOL = "[-]"
+    DECIDES, OTHERWISE = Status.FAILURE, Status.SUCCESS
 
 
 class Fallback(ControlNode, register=False):
@@ -211,25 +223,11 @@ class Fallback(ControlNode, register=False):
         self.index = 0
 
 
-class ReactiveFallback(ControlNode, register=False):
+class ReactiveFallback(_Reactive, register=False):
     """BT.CPP ReactiveFallback: re-ticks from the first child every tick; a higher child succeeding or running halts a lower one."""
 
     SYMBOL = "[o]"
-
-    def start(self) -> None:
-        _reset_children(self)
-
-    def step(self) -> Steps:
-        all_skipped = True
-        for index, child in enumerate(self.children):
-            status = yield from self.tick_child(child)
-            all_skipped &= status == SKIPPED
-            if status == Status.RUNNING:
-                self.halt_from(index + 1)
-                return Status.RUNNING
-            if status == Status.SUCCESS:
-                return Status.SUCCESS
-        return SKIPPED if all_skipped else Status.FAILURE
+    DECIDES, OTHERWISE = Status.SUCCESS, Status.FAILURE
 
 
 class Parallel(ControlNode, register=False):
