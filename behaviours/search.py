@@ -1,0 +1,109 @@
+"""RHCSearch and MaxBeliefSearch: search the airspace around the last cue until something else takes over.
+
+Each tick (paper section 3.4): advance the belief by the elapsed mission time, lower it where
+the camera looks from the vehicle's pose, re-plan when the step is reached, and send the step as
+one GUIDED position target facing along the move. The belief starts from the cue on
+``/target/cue``; the search state is published on ``/search/belief`` (a SearchSnapshot: belief,
+gain, set-point) for plots and logs. RUNNING until halted (vision acquired, the pilot, a timeout);
+FAILURE (and hover) without a cue, outside GUIDED, or when the belief cannot be built.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import py_trees
+
+from behaviours.base import CommandingBehaviour, state_port
+from chaser_bt.cue import TargetCue
+from chaser_bt.search import (BeliefError, BeliefGrid, GaussianDynamics, GridSpec, MaxBeliefPlanner,
+                              RecedingHorizonPlanner, SearchSession, SearchSnapshot, SensorModel)
+from chaser_bt.tree import input_port, output_port, register_behaviour
+from chaser_bt.vision import CameraModel
+
+Status = py_trees.common.Status
+
+
+class _BeliefSearch(CommandingBehaviour):
+    """Shared by both searches; subclasses choose the planner."""
+
+    INPUT_PORTS = {
+        "cue": input_port(TargetCue, "Last target cue: the belief starts from it", default_key="/target/cue"),
+        "grid_center": input_port(list[float], "ENU centre of the search grid (the radar), m", default=[0.0, 0.0, 0.0]),
+        "half_width_m": input_port(float, "Grid half-width east and north (m)", default=400.0),
+        "z_max_m": input_port(float, "Grid top above the centre's floor (m)", default=200.0),
+        "spacing_m": input_port(float, "Grid spacing (m)", default=20.0),
+        "v_h_mps": input_port(float, "Target's expected horizontal speed (m/s)", default=10.0),
+        "v_v_mps": input_port(float, "Target's expected vertical speed (m/s)", default=5.0),
+        "max_range_m": input_port(float, "Camera detection range (m)", default=80.0),
+        "tilt_deg": input_port(float, "Camera mount tilt below forward (deg)", default=10.0),
+        "p_detect": input_port(float, "Detection probability inside the footprint", default=0.9),
+        "replan_s": input_port(float, "Re-plan at least this often (s)", default=2.0),
+        "state": state_port(),
+    }
+    OUTPUT_PORTS = {"belief": output_port(SearchSnapshot, "Belief, belief gain and set-point", default_key="/search/belief")}
+
+    def make_planner(self, sensor: SensorModel):
+        raise NotImplementedError
+
+    def initialise(self) -> None:
+        self._session: SearchSession | None = None
+
+    def update(self) -> Status:
+        state, now = self.state, self._now()
+        if state.mode != "GUIDED":
+            self.feedback_message = f"vehicle is in {state.mode or 'an unknown mode'}, not GUIDED"
+            return Status.FAILURE
+        try:
+            if self._session is None:
+                self._session = self._start()
+            snap = self._session.update(now, state.position_enu, state.attitude, state.yaw_enu_rad)
+        except (BeliefError, KeyError, py_trees.ports.NoDataAvailable) as exc:
+            self.feedback_message = f"search cannot run: {exc}"
+            return Status.FAILURE
+        if snap.replanned:
+            self._link().goto_enu(snap.target_enu, snap.yaw_enu_rad)
+        self._set_output("belief", snap)
+        self.feedback_message = f"gain {snap.gain:.4f}, to {np.round(snap.target_enu).tolist()}"
+        return Status.RUNNING
+
+    def _start(self) -> SearchSession:
+        cue = self.get_input("cue")
+        if not isinstance(cue, TargetCue):
+            raise BeliefError(f"no target cue on the blackboard (got {type(cue).__name__})")
+        center = self.get_input("grid_center")
+        spec = GridSpec.around(center, self.get_input("half_width_m"), center[2], center[2] + self.get_input("z_max_m"),
+                               self.get_input("spacing_m"))
+        camera = CameraModel(max_range_m=self.get_input("max_range_m"), tilt_rad=math.radians(self.get_input("tilt_deg")),
+                             p_detect=self.get_input("p_detect"))
+        sensor = SensorModel(camera, spec)
+        dynamics = GaussianDynamics(self.get_input("v_h_mps"), self.get_input("v_v_mps"))
+        belief = BeliefGrid.from_cue(spec, cue)
+        return SearchSession(belief, dynamics, sensor, self.make_planner(sensor), cue.t, replan_s=self.get_input("replan_s"))
+
+
+@register_behaviour
+class RHCSearch(_BeliefSearch):
+    """Receding-horizon search (paper Algorithm 2, exact): fly one step of the best h-move path, re-plan."""
+
+    INPUT_PORTS = {
+        **_BeliefSearch.INPUT_PORTS,
+        "horizon": input_port(int, "Moves per planned path (h)", default=5),
+        "gamma": input_port(float, "Discount factor", default=0.9),
+        "threshold": input_port(float, "Minimum path gain; below it go to the belief maximum", default=0.001),
+        "node_budget": input_port(int, "0: exact; N > 0: stop after N search nodes (approximate, anytime)", default=0),
+    }
+
+    def make_planner(self, sensor: SensorModel) -> RecedingHorizonPlanner:
+        budget = self.get_input("node_budget")
+        return RecedingHorizonPlanner(sensor, self.get_input("horizon"), self.get_input("gamma"), self.get_input("threshold"),
+                                      node_budget=budget if budget > 0 else None)
+
+
+@register_behaviour
+class MaxBeliefSearch(_BeliefSearch):
+    """Max-belief search (the paper's baseline): fly straight to the most probable cell."""
+
+    def make_planner(self, sensor: SensorModel) -> MaxBeliefPlanner:
+        return MaxBeliefPlanner(sensor.spec)

@@ -1,0 +1,95 @@
+"""Search speed: planning time of the exact RHC on the paper's grid for h = 1..5, belief update
+time, and time to acquire (RHC h=5 vs max-belief, open airspace, camera on).
+
+Prints one JSON line: {"name": "search", "grid": [41, 41, 11], "plan_ms": {"1": ..., "5": ...}
+(median over planning states taken from real searches), "plan_ms_p95": {...}, "plan_ms_max":
+{...}, "belief_update_ms": ..., "seeds": n, "t_acquire_s_rhc_median": ...,
+"t_acquire_s_maxbelief_median": ...}. Timing is single-process wall time on this machine.
+Run: .venv/bin/python benchmarks/bench_search.py [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from search_experiment import fly  # noqa: E402
+
+from chaser_bt.cue import TargetCue  # noqa: E402
+from chaser_bt.search import (BeliefGrid, GaussianDynamics, GridSpec, MaxBeliefPlanner, RecedingHorizonPlanner,  # noqa: E402
+                              SearchSession, SensorModel, level_attitude)
+from chaser_bt.vision import CameraModel  # noqa: E402
+
+
+def planning_states(n_runs: int):
+    """(belief, position, yaw) at each re-plan of short max-belief searches: realistic beliefs and poses."""
+    spec = GridSpec.around((0.0, 0.0, 0.0))
+    sensor = SensorModel(CameraModel(), spec)
+    states = []
+    for seed in range(n_runs):
+        rng = np.random.default_rng(seed)
+        fix = np.array([rng.uniform(-200, 200), rng.uniform(-200, 200), rng.uniform(40, 100)])
+        belief = BeliefGrid.from_cue(spec, TargetCue(0.0, fix, np.diag([8.0, 8.0, 5.0]) ** 2))
+        ang = rng.uniform(-math.pi, math.pi)
+        pos = fix + np.array([200 * math.cos(ang), 200 * math.sin(ang), 0.0])
+        session = SearchSession(belief, GaussianDynamics(), sensor, MaxBeliefPlanner(spec), 0.0)
+        yaw = ang + math.pi
+        for k in range(1, 61):  # 60 s, a state every 6 s
+            snap = session.update(float(k), pos, level_attitude(yaw), yaw)
+            step = snap.target_enu - pos
+            dist = float(np.linalg.norm(step))
+            if dist > 1e-6:
+                pos = pos + step / dist * min(dist, 12.0)
+                yaw = math.atan2(step[1], step[0])
+            if k % 6 == 0:
+                states.append((belief.p.copy(), pos.copy(), yaw))
+    return spec, sensor, states
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="fewer planning states and seeds")
+    args = parser.parse_args()
+    spec, sensor, states = planning_states(2 if args.quick else 6)
+    plan_ms, p95, worst = {}, {}, {}
+    for h in range(1, 6):
+        planner = RecedingHorizonPlanner(sensor, h, 0.9)
+        times = []
+        for p, pos, yaw in states:
+            t0 = time.perf_counter()
+            planner.plan(p, pos, yaw)
+            times.append(1e3 * (time.perf_counter() - t0))
+        plan_ms[str(h)] = round(float(np.median(times)), 2)
+        p95[str(h)] = round(float(np.percentile(times, 95)), 2)
+        worst[str(h)] = round(float(np.max(times)), 2)
+
+    belief = BeliefGrid.from_cue(spec, TargetCue(0.0, np.array([50.0, 50.0, 60.0]), np.eye(3) * 400.0))
+    dyn = GaussianDynamics()
+    t0 = time.perf_counter()
+    for i in range(50):
+        dyn.step(belief, 0.2)
+        sensor.observe(belief, np.array([0.0, -100.0, 60.0]), level_attitude(0.1 * i))
+    update_ms = 1e3 * (time.perf_counter() - t0) / 50
+
+    seeds = 8 if args.quick else 30
+    rhc = [fly("rhc", "open", s, horizon=5, gamma=0.9).t_acquire_s for s in range(seeds)]
+    mx = [fly("max", "open", s).t_acquire_s for s in range(seeds)]
+    censor = lambda xs: [180.0 if x is None else x for x in xs]  # noqa: E731
+    print(json.dumps({
+        "name": "search", "grid": list(spec.shape), "plan_ms": plan_ms, "plan_ms_p95": p95, "plan_ms_max": worst,
+        "planning_states": len(states), "belief_update_ms": round(update_ms, 3), "seeds": seeds,
+        "t_acquire_s_rhc_median": float(np.median(censor(rhc))), "t_acquire_s_maxbelief_median": float(np.median(censor(mx))),
+        "acquired_frac_rhc": round(float(np.mean([x is not None for x in rhc])), 3),
+        "acquired_frac_maxbelief": round(float(np.mean([x is not None for x in mx])), 3),
+    }))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,88 @@
+"""RHCSearch and MaxBeliefSearch flown against the simulator, with a cue written as a mission input."""
+
+from __future__ import annotations
+
+import numpy as np
+import py_trees
+import pytest
+
+from chaser_bt.cue import TargetCue
+from chaser_bt.search import SearchSnapshot
+
+from flight_helpers import runner_for, take_off
+
+Status = py_trees.common.Status
+
+CUE_ENU = np.array([120.0, 80.0, 40.0])
+
+
+def write_cue(t: float, position=CUE_ENU) -> None:
+    py_trees.blackboard.Blackboard.set("/target/cue", TargetCue(t, np.asarray(position, float), np.diag([30.0, 30.0, 10.0]) ** 2, source="radar"))
+
+
+def snapshots(vehicle, runner, seconds: float) -> list[SearchSnapshot]:
+    """Tick for ``seconds`` of sim time, collecting each tick's published search state."""
+    out = []
+    vehicle.track = []
+
+    def tick() -> bool:
+        vehicle.track.append(vehicle.sim.truth.pos_enu.copy())
+        if runner.tick_if_due():
+            snap = py_trees.blackboard.Blackboard.get("/search/belief") if py_trees.blackboard.Blackboard.exists("/search/belief") else None
+            if snap is not None and (not out or snap.t != out[-1].t):
+                out.append(snap)
+        return runner.finished
+
+    vehicle.run_until(tick, seconds)
+    return out
+
+
+def test_rhc_search_flies_steps_towards_the_cue_and_publishes_the_belief(vehicle):
+    take_off(vehicle, 40)
+    write_cue(vehicle.clock.now())
+    runner = runner_for(vehicle, "RHCSearch: {horizon: 5, gamma: 0.9}")
+    start = vehicle.sim.truth.pos_enu.copy()
+    snaps = snapshots(vehicle, runner, 40.0)
+    assert runner.status == Status.RUNNING, runner.tip_message()
+    assert len(snaps) > 100
+    # The belief is advanced and lowered each tick, with the mass accounted for.
+    last = snaps[-1]
+    assert last.belief.ledger.observed > 0.05
+    assert last.belief.total() + last.belief.ledger.removed == pytest.approx(1.0, abs=1e-9)
+    assert max(s.gain for s in snaps) > 0.01
+    # Each set-point was one step (<= one cell diagonal) from where the vehicle was when it planned.
+    replans = [s for s in snaps if s.replanned and not s.plan.fell_back]
+    assert len(replans) >= 5
+    assert all(np.max(np.abs(s.plan.path[1] - s.plan.path[0])) == 1 for s in replans)
+    # Flown by the simulator: it closed in on the cue, searching where the belief was.
+    end = vehicle.sim.truth.pos_enu
+    assert np.linalg.norm(end[:2] - CUE_ENU[:2]) < np.linalg.norm(start[:2] - CUE_ENU[:2]) - 60.0
+
+
+def test_max_belief_search_heads_for_the_most_probable_cell(vehicle):
+    take_off(vehicle, 40)
+    write_cue(vehicle.clock.now())
+    runner = runner_for(vehicle, "MaxBeliefSearch: {}")
+    snaps = snapshots(vehicle, runner, 30.0)
+    assert runner.status == Status.RUNNING, runner.tip_message()
+    np.testing.assert_allclose(snaps[0].target_enu, CUE_ENU, atol=20.0)
+    # It flew to the cue; once the camera had lowered the belief there, the maximum moved on.
+    closest = min(np.linalg.norm(p[:2] - CUE_ENU[:2]) for p in vehicle.track)
+    assert closest < 25.0
+    assert np.linalg.norm(snaps[-1].target_enu - CUE_ENU) > 20.0
+
+
+def test_search_without_a_cue_fails_and_hovers(vehicle):
+    take_off(vehicle, 20)
+    runner = runner_for(vehicle, "RHCSearch: {horizon: 2}")
+    assert vehicle.fly(runner, 2.0) == Status.FAILURE
+    assert "cue" in runner.tree.root.feedback_message
+    assert vehicle.link.last_setpoint is not None
+
+
+def test_search_with_a_cue_off_the_grid_fails_with_the_reason(vehicle):
+    take_off(vehicle, 20)
+    write_cue(vehicle.clock.now(), [5000.0, 0.0, 40.0])
+    runner = runner_for(vehicle, "MaxBeliefSearch: {}")
+    assert vehicle.fly(runner, 2.0) == Status.FAILURE
+    assert "outside the search grid" in runner.tree.root.feedback_message
