@@ -20,7 +20,12 @@ __all__ = ["main"]
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
 # Packages that bring their own sub-commands: each has ``add_command(subparsers)``.
-_COMMAND_MODULES = ("chaser_bt.tree.commands", "chaser_bt.radar.commands", "chaser_bt.control.commands")
+_COMMAND_MODULES = (
+    "chaser_bt.tree.commands",
+    "chaser_bt.radar.commands",
+    "chaser_bt.control.commands",
+    "chaser_bt.vision.commands",
+)
 
 log = logging.getLogger("chaser_bt.cli")
 

@@ -1,0 +1,100 @@
+"""Vision behaviours (paper section 3.1): the camera pipeline and the "target in view" check.
+
+:class:`VisionPipeline` ticks a :class:`chaser_bt.vision.pipeline.CameraSensor` handed to ``setup``
+as ``camera=`` (beside ``link`` and ``clock``): one frame per tick through detector, trackers and
+projection, and writes the :class:`~chaser_bt.cue.TargetEstimate` to ``/target/estimate``. With
+``range_from_telemetry`` it takes the range from the target's own position on
+``/target/telemetry`` (the paper's flights) instead of the box size. :class:`TargetInView` is
+SUCCESS while a confident estimate is fresh.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import py_trees
+
+from behaviours.base import VehicleBehaviour, state_port
+from chaser_bt.cue import TargetCue, TargetEstimate
+from chaser_bt.tree import NodeKind, input_port, output_port, register_behaviour
+from chaser_bt.vision.pipeline import CameraSensor, OwnshipPose
+
+Status = py_trees.common.Status
+
+ESTIMATE_KEY = "/target/estimate"
+TELEMETRY_KEY = "/target/telemetry"
+
+
+def _optional(node: py_trees.ports.PortsMixin, port: str) -> Any:
+    try:
+        return node.get_input(port)
+    except Exception:  # nothing written to the key yet
+        return None
+
+
+@register_behaviour
+class VisionPipeline(VehicleBehaviour):
+    """Process one camera frame; SUCCESS with a target estimate written, FAILURE when none is seen."""
+
+    NODE_KIND = NodeKind.ACTION
+    INPUT_PORTS = {
+        "range_from_telemetry": input_port(bool, "Take range from the target's telemetry, not the box size", default=False),
+        "telemetry": input_port(TargetCue, "Target's own position (telemetry cue)", required=False, default_key=TELEMETRY_KEY),
+        "max_telemetry_age_s": input_port(float, "Older telemetry is not used for range (s)", default=2.0),
+        "state": state_port(),
+    }
+    OUTPUT_PORTS = {"estimate": output_port(TargetEstimate, "Where the camera sees the target", default_key=ESTIMATE_KEY)}
+
+    def setup(self, **kwargs: Any) -> None:
+        super().setup(**kwargs)
+        if not isinstance(kwargs.get("camera"), CameraSensor):
+            raise KeyError(f"{self.name}: setup() needs camera=CameraSensor(...) (the mission runner passes it)")
+        self.camera: CameraSensor = kwargs["camera"]
+
+    def update(self) -> Status:
+        s = self.state
+        if s.attitude is None or not np.all(np.isfinite(s.position_enu)):
+            self.feedback_message = "no ownship attitude/position yet"
+            return Status.FAILURE
+        now = self._now()
+        known_range = None
+        if self.get_input("range_from_telemetry"):
+            tel = _optional(self, "telemetry")
+            if tel is not None and tel.age(now) <= self.get_input("max_telemetry_age_s"):
+                cam = self.camera.pipeline.camera.position_enu(s.position_enu, s.attitude)
+                known_range = float(np.linalg.norm(tel.position_enu - cam))
+        vel = s.velocity_enu if np.all(np.isfinite(s.velocity_enu)) else np.zeros(3)
+        est = self.camera.step(now, OwnshipPose(now, s.position_enu, vel, s.attitude), known_range)
+        if est is None:
+            self.feedback_message = "no target in view"
+            return Status.FAILURE
+        self._set_output("estimate", est)
+        self.feedback_message = f"target at {est.range_m:.1f} m, confidence {est.confidence:.2f}"
+        return Status.SUCCESS
+
+
+@register_behaviour
+class TargetInView(VehicleBehaviour):
+    """SUCCESS while the camera's estimate is younger than ``max_age_s`` and at least ``min_confidence``."""
+
+    NODE_KIND = NodeKind.CONDITION
+    INPUT_PORTS = {
+        "estimate": input_port(TargetEstimate, "The camera's target estimate", required=False, default_key=ESTIMATE_KEY),
+        "max_age_s": input_port(float, "An estimate older than this is out of view (s)", default=0.5),
+        "min_confidence": input_port(float, "Least confidence that counts (0..1)", default=0.3),
+        "state": state_port(),
+    }
+    OUTPUT_PORTS: dict = {}
+
+    def update(self) -> Status:
+        est = _optional(self, "estimate")
+        if est is None:
+            self.feedback_message = "no estimate"
+            return Status.FAILURE
+        age = est.age(self._now())
+        if age > self.get_input("max_age_s") or est.confidence < self.get_input("min_confidence"):
+            self.feedback_message = f"estimate age {age:.2f} s, confidence {est.confidence:.2f}"
+            return Status.FAILURE
+        self.feedback_message = f"in view, {est.range_m:.1f} m"
+        return Status.SUCCESS

@@ -1,0 +1,137 @@
+"""Vision benchmark (issue 6): detector quality and speed on a held-out rendered set, pipeline rate,
+bearing error and range error in a follow sequence, renderer speed. Prints one JSON line.
+
+Held-out: ``sitl.camera.dataset`` split "heldout" (other ground seeds, wider lighting), seed 777.
+Speeds are single-threaded (torch and OpenCV), the setting measured fastest on the shared CPU.
+Usage: python benchmarks/bench_vision.py [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+
+import cv2
+import numpy as np
+import torch
+from scipy.spatial.transform import Rotation
+
+from chaser_bt.vision.camera import CameraModel
+from chaser_bt.vision.detector.evaluate import evaluate_detections, frames_per_second, iou_matrix
+from chaser_bt.vision.detector.inference import Detector
+from chaser_bt.vision.frame_source import Frame
+from chaser_bt.vision.pipeline import OwnshipPose, PipelineConfig, VisionPipeline
+from chaser_bt.vision.projection import Projector
+from chaser_bt.vision.range import TARGET_SPAN_M, range_from_box
+from sitl.camera.dataset import DatasetRenderer, frame_boxes
+from sitl.camera.renderer import Lighting, Renderer, TargetPose, attitude_from_velocity
+from sitl.camera.scene import make_ground
+from sitl.camera.sequences import follow_sequence
+
+
+def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
+    return math.degrees(math.atan2(np.linalg.norm(np.cross(a, b)), float(np.dot(a, b))))
+
+
+def detector_metrics(n: int, seed: int) -> dict:
+    data = DatasetRenderer("heldout")
+    rng = np.random.default_rng(seed)
+    frames = [data.sample(rng) for _ in range(n)]
+    out = {}
+    for size in (416, 832):
+        det = Detector(image_size=size, conf_threshold=0.005, threads=1)
+        preds = [[(d.box, d.score, d.class_id) for d in det(f.image)] for f in frames]
+        m = evaluate_detections(preds, [frame_boxes(f) for f in frames], len(det.class_names))
+        det.conf_threshold = 0.25
+        fps = frames_per_second(det, [f.image for f in frames[: min(n, 100)]])
+        out[size] = (m, fps)
+    return out
+
+
+def follow_metrics(n: int, seed: int) -> dict:
+    cam = CameraModel(width_px=640, height_px=480)
+    views = list(follow_sequence(cam, n, seed))
+    det = Detector(image_size=416, threads=1)
+    pipe = VisionPipeline(cam, det, PipelineConfig(detect_every=3))
+    proj = Projector(cam)
+    fx = cam.focal_px[0]
+    est_err, box_err, bearing_err, correct = [], [], [], 0
+    t0 = time.perf_counter()
+    results = []
+    for k, v in enumerate(views):
+        est = pipe.process(Frame(v.t, v.image, k), OwnshipPose(v.t, v.position_enu, v.velocity_enu, v.attitude_measured))
+        results.append((est, pipe.track.box if pipe.track is not None and est is not None else None, pipe.track, pipe.smoother.attitude))
+    elapsed = time.perf_counter() - t0
+    projection_err = []
+    for v, (est, box, track, smoothed) in zip(views, results):
+        if v.label is None:
+            continue
+        true_range = float(np.linalg.norm(v.target_enu - cam.position_enu(v.position_enu, v.attitude_true)))
+        if box is not None and iou_matrix(np.array([box]), np.array([v.label.box]))[0, 0] >= 0.5:
+            correct += 1
+        if est is not None:
+            est_err.append(abs(est.range_m - true_range) / true_range)
+            # Bearing at the box centre vs the true ray through the true box centre.
+            lb = v.label.box
+            true_ray = proj.bearing_enu(np.array([[(lb[0] + lb[2]) / 2, (lb[1] + lb[3]) / 2]]), v.attitude_true)[0]
+            bearing_err.append(_angle_deg(est.bearing_enu, true_ray))
+            # Projection alone: the true box centre through the smoothed, IMU-noisy attitude.
+            lb_c = np.array([[(lb[0] + lb[2]) / 2, (lb[1] + lb[3]) / 2]])
+            projection_err.append(_angle_deg(proj.bearing_enu(lb_c, smoothed)[0], true_ray))
+        if track is not None and track.t_detected == v.t and box is not None:
+            box_err.append(abs(range_from_box(box, TARGET_SPAN_M[track.class_name], 320.0, fx) - true_range) / true_range)
+    labelled = sum(v.label is not None for v in views)
+    return {"pipeline_hz": len(views) / elapsed, "correct_box_share": correct / max(labelled, 1),
+            "bearing_err_deg_p95": float(np.percentile(bearing_err, 95)) if bearing_err else float("nan"),
+            "range_rel_err_median": float(np.median(est_err)) if est_err else float("nan"),
+            "range_rel_err_median_bbox_only": float(np.median(box_err)) if box_err else float("nan"),
+            "estimate_share": len(est_err) / max(labelled, 1),
+            "projection_only_bearing_err_deg_p95": float(np.percentile(projection_err, 95)) if projection_err else float("nan")}
+
+
+def render_fps(n: int) -> float:
+    cam = CameraModel(width_px=640, height_px=480)
+    r = Renderer(cam, make_ground(1004))
+    rng = np.random.default_rng(3)
+    att = [Rotation.from_euler("ZYX", [0.01 * k, 0.05, 0.02]) for k in range(n)]
+    tg = [TargetPose("s1000", np.array([15.0, 3.0, 28.0]), attitude_from_velocity(np.array([3.0, 1.0, 0.0])))]
+    t0 = time.perf_counter()
+    for k in range(n):
+        r.render(np.array([0.0, 0.0, 30.0]), att[k], tg, Lighting(), rng, blur_px=3.0)
+    return n / (time.perf_counter() - t0)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--quick", action="store_true")
+    args = ap.parse_args()
+    torch.set_num_threads(1)
+    cv2.setNumThreads(1)
+    n_det, n_follow, n_render = (120, 240, 60) if args.quick else (600, 900, 300)
+    det = detector_metrics(n_det, 777)
+    fol = follow_metrics(n_follow, 5)
+    det_backend = Detector().backend
+    m416, fps416 = det[416]
+    m832, fps832 = det[832]
+    print(json.dumps({
+        "name": "vision",
+        "ap50_416": round(m416.ap50, 4), "ap50_832": round(m832.ap50, 4), "iou_416": round(m416.iou, 4),
+        "p_416": round(m416.precision, 4), "r_416": round(m416.recall, 4), "f1_416": round(m416.f1, 4),
+        "fps_416": round(fps416, 1), "fps_832": round(fps832, 1),
+        "pipeline_hz": round(fol["pipeline_hz"], 1),
+        "bearing_err_deg_p95": round(fol["bearing_err_deg_p95"], 3),
+        "range_rel_err_median": round(fol["range_rel_err_median"], 4),
+        "range_rel_err_median_bbox_only": round(fol["range_rel_err_median_bbox_only"], 4),
+        "render_fps_640": round(render_fps(n_render), 1),
+    }))
+    # Not in the issue's key list, so on stderr: the share of labelled frames whose reported box is right.
+    print(json.dumps({"correct_box_share": round(fol["correct_box_share"], 4), "estimate_share": round(fol["estimate_share"], 4),
+                      "projection_only_bearing_err_deg_p95": round(fol["projection_only_bearing_err_deg_p95"], 3),
+                      "detector_backend": det_backend}), file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,111 @@
+"""``chaser-bt train-detector`` and ``chaser-bt eval-detector`` (wired into chaser_bt/cli.py by add_command).
+
+Data folders are in YOLO layout (images/*.jpg, labels/*.txt, classes.txt); render them with
+``python -m sitl.camera.dataset OUT --split train|heldout``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+__all__ = ["add_command", "evaluate_folder"]
+
+
+def evaluate_folder(data_dir: str | Path, weights: str | Path, image_size: int, threads: int = 1, limit: int = 0,
+                    backend: str = "auto") -> dict:
+    """Metrics (model card) and frames/s of the detector on a YOLO folder at ``image_size``."""
+    from chaser_bt.vision.detector.evaluate import evaluate_detections, frames_per_second
+    from chaser_bt.vision.detector.inference import Detector
+
+    root = Path(data_dir)
+    paths = sorted((root / "images").glob("*.jpg"))
+    if limit:
+        paths = paths[:limit]
+    if not paths:
+        raise ValueError(f"{root / 'images'}: no .jpg images")
+    det = Detector(weights, image_size=image_size, conf_threshold=0.005, threads=threads, backend=backend)
+    names = det.class_names
+    preds, gts, frames = [], [], []
+    for p in paths:
+        img = cv2.imread(str(p), cv2.IMREAD_COLOR)
+        h, w = img.shape[:2]
+        frames.append(img)
+        preds.append([(d.box, d.score, d.class_id) for d in det(img)])
+        rows = []
+        lab = root / "labels" / (p.stem + ".txt")
+        for line in lab.read_text().splitlines() if lab.exists() else []:
+            if line.strip():
+                c, cx, cy, bw, bh = line.split()
+                cx, cy, bw, bh = float(cx) * w, float(cy) * h, float(bw) * w, float(bh) * h
+                rows.append([int(c), cx - bw / 2, cy - bh / 2, cx + bw / 2, cy + bh / 2])
+        gts.append(np.array(rows, float).reshape(-1, 5))
+    m = evaluate_detections(preds, gts, len(names))
+    det.conf_threshold = 0.25
+    fps = frames_per_second(det, frames[:60])
+    return {"images": len(paths), "image_size": image_size, "backend": det.backend, "ap50": m.ap50, "ap50_per_class": {names[k]: v for k, v in m.ap50_per_class.items()},
+            "iou": m.iou, "precision": m.precision, "recall": m.recall, "f1": m.f1, "fps": fps}
+
+
+def _train(args: argparse.Namespace) -> int:
+    from chaser_bt.vision.detector.train import TrainConfig, train_detector
+
+    if not (Path(args.data) / "images").is_dir():
+        print(f"error: --data {args.data}: no images/ folder (YOLO layout expected)", file=sys.stderr)
+        return 2
+    try:
+        out = train_detector(TrainConfig(args.data, args.out, steps=args.steps, batch=args.batch, seed=args.seed, threads=args.threads),
+                             resume=not args.fresh)
+    except ValueError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    print(f"weights written to {out}")
+    try:
+        from chaser_bt.vision.detector.inference import export_onnx
+
+        print(f"ONNX copy written to {export_onnx(out, out.with_suffix('.onnx'))}")
+    except ImportError:
+        print("onnx is not installed: no ONNX copy (inference uses torch)")
+    return 0
+
+
+def _eval(args: argparse.Namespace) -> int:
+    from chaser_bt.vision.detector.inference import DEFAULT_WEIGHTS
+
+    if not (Path(args.data) / "images").is_dir():
+        print(f"error: --data {args.data}: no images/ folder (YOLO layout expected)", file=sys.stderr)
+        return 2
+    try:
+        results = [evaluate_folder(args.data, args.weights or DEFAULT_WEIGHTS, s, args.threads, args.limit, args.backend) for s in args.sizes]
+    except (ValueError, FileNotFoundError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    for r in results:
+        print(json.dumps(r))
+    return 0
+
+
+def add_command(subparsers) -> None:
+    """Add ``train-detector`` and ``eval-detector`` to the CLI's subparsers."""
+    t = subparsers.add_parser("train-detector", help="train the vision detector on a YOLO folder (seeded, resumable)")
+    t.add_argument("--data", required=True, help="YOLO folder (python -m sitl.camera.dataset writes one)")
+    t.add_argument("--out", default="detector.pt", help="weights file to write (a .ckpt beside it makes it resumable)")
+    t.add_argument("--steps", type=int, default=1500)
+    t.add_argument("--batch", type=int, default=24)
+    t.add_argument("--seed", type=int, default=0)
+    t.add_argument("--threads", type=int, default=1)
+    t.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
+    t.set_defaults(handler=_train)
+    e = subparsers.add_parser("eval-detector", help="11-point AP@0.5, IoU, P/R/F1 at 0.25 and frames/s on a YOLO folder")
+    e.add_argument("--data", required=True)
+    e.add_argument("--weights", default=None, help="default: the shipped weights")
+    e.add_argument("--sizes", type=int, nargs="+", default=[416, 832])
+    e.add_argument("--threads", type=int, default=1)
+    e.add_argument("--limit", type=int, default=0, help="use the first N images only")
+    e.add_argument("--backend", choices=["auto", "torch", "onnx"], default="auto")
+    e.set_defaults(handler=_eval)

@@ -1,0 +1,138 @@
+"""Run the trained detector on BGR frames: letterbox, forward, decode, confidence filter, NMS.
+
+The default weights ship in ``chaser_bt/vision/weights/tiny_yolo.pt`` and load without any
+download. Torch uses ``threads`` intra-op threads (1 measured fastest on the shared 2-core CPU:
+see docs/vision.md). An ONNX copy can be exported with :func:`export_onnx`; onnxruntime is used
+only when it is installed and asked for.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from chaser_bt.vision.detection import Detection
+from chaser_bt.vision.detector.augment import letterbox
+from chaser_bt.vision.detector.model import DetectorConfig, TinyYolo, decode
+
+__all__ = ["Detection", "Detector", "DEFAULT_WEIGHTS", "DEFAULT_ONNX", "load_model", "nms", "export_onnx"]
+
+DEFAULT_WEIGHTS = Path(__file__).resolve().parent.parent / "weights" / "tiny_yolo.pt"
+DEFAULT_ONNX = DEFAULT_WEIGHTS.with_suffix(".onnx")
+_MAX_NMS = 300
+
+
+def load_model(path: str | Path = DEFAULT_WEIGHTS) -> TinyYolo:
+    """The detector with weights from ``path`` (a file saved by training), in eval mode, float32."""
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(f"detector weights not found: {p}")
+    blob = torch.load(p, map_location="cpu", weights_only=False)
+    model = TinyYolo(DetectorConfig.from_dict(blob["config"]))
+    model.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in blob["state_dict"].items()})
+    return model.eval()
+
+
+def nms(boxes: np.ndarray, scores: np.ndarray, iou_threshold: float) -> list[int]:
+    """Greedy non-maximum suppression; indices kept, best first."""
+    order = np.argsort(-scores)
+    keep: list[int] = []
+    while len(order):
+        i = int(order[0])
+        keep.append(i)
+        rest = order[1:]
+        lt = np.maximum(boxes[i, :2], boxes[rest, :2])
+        rb = np.minimum(boxes[i, 2:], boxes[rest, 2:])
+        inter = np.prod(np.clip(rb - lt, 0, None), axis=1)
+        area = np.prod(boxes[rest, 2:] - boxes[rest, :2], axis=1) + np.prod(boxes[i, 2:] - boxes[i, :2])
+        order = rest[inter / np.maximum(area - inter, 1e-9) <= iou_threshold]
+    return keep
+
+
+class Detector:
+    """Frames in, :class:`Detection` lists out.
+
+    Args:
+        weights: weights file (default: the shipped one).
+        image_size: letterbox size (the network input is image_size x image_size; 416 or 832).
+        conf_threshold: minimum score (objectness x class probability) kept.
+        iou_threshold: NMS overlap.
+        threads: torch (process-wide) or onnxruntime intra-op threads.
+        multi_label: report every class above the threshold for a box, not just the best (for AP).
+        backend: "torch"; "onnx" to run ``onnx_path`` with onnxruntime (optional dependency, measured
+            faster on this CPU); "auto" = onnx when onnxruntime is installed and the file exists.
+    """
+
+    def __init__(self, weights: str | Path = DEFAULT_WEIGHTS, image_size: int = 416, conf_threshold: float = 0.25,
+                 iou_threshold: float = 0.45, threads: int = 1, max_detections: int = 20, backend: str = "auto",
+                 onnx_path: str | Path = DEFAULT_ONNX, multi_label: bool = False) -> None:
+        if image_size % 32:
+            raise ValueError(f"image_size must be a multiple of 32, got {image_size}")
+        if backend not in ("torch", "onnx", "auto"):
+            raise ValueError(f"backend must be 'torch', 'onnx' or 'auto', got {backend!r}")
+        if backend == "auto":
+            backend = "onnx" if _have_onnxruntime() and Path(onnx_path).exists() and Path(weights).resolve() == DEFAULT_WEIGHTS else "torch"
+        self.backend = backend
+        torch.set_num_threads(threads)
+        self.model = load_model(weights)
+        self.class_names = self.model.config.class_names
+        self._session = None
+        if backend == "onnx":
+            import onnxruntime
+
+            opts = onnxruntime.SessionOptions()
+            opts.intra_op_num_threads = threads
+            opts.inter_op_num_threads = 1
+            self._session = onnxruntime.InferenceSession(str(onnx_path), opts, providers=["CPUExecutionProvider"])
+        self.image_size = image_size
+        self.conf_threshold = conf_threshold
+        self.iou_threshold = iou_threshold
+        self.max_detections = max_detections
+        self.multi_label = multi_label
+
+    def __call__(self, frame_bgr: np.ndarray) -> list[Detection]:
+        img, scale, (px, py) = letterbox(frame_bgr, self.image_size)
+        x = torch.from_numpy(np.ascontiguousarray(img[..., ::-1].transpose(2, 0, 1))).float().div_(255.0)[None]
+        with torch.inference_mode():
+            raw = self.model(x) if self._session is None else torch.from_numpy(self._session.run(None, {"images": x.numpy()})[0])
+            out = decode(raw, self.model.config.stride)[0].numpy()
+        if self.multi_label:  # one candidate per class and cell (darknet's evaluation), NMS per class
+            n, c = len(out), out.shape[1] - 5
+            cls = np.repeat(np.arange(c)[None], n, 0).ravel()
+            score = (out[:, 4:5] * out[:, 5:]).ravel()
+            boxes = np.repeat(out[:, :4], c, 0)
+        else:
+            cls = out[:, 5:].argmax(1)
+            score = out[:, 4] * out[np.arange(len(out)), 5 + cls]
+            boxes = out[:, :4]
+        m = np.flatnonzero(score >= self.conf_threshold)
+        m = m[np.argsort(-score[m])[:_MAX_NMS]]  # the best few hundred candidates go to the (quadratic) NMS
+        boxes, score, cls = boxes[m], score[m], cls[m]
+        offset = cls[:, None] * 1e5 if self.multi_label else 0.0  # per-class NMS by shifting classes apart
+        keep = nms(boxes + offset, score, self.iou_threshold)[: self.max_detections]
+        h, w = frame_bgr.shape[:2]
+        dets = []
+        for i in keep:
+            b = (boxes[i] - np.array([px, py, px, py])) / scale
+            b = np.clip(b, [0, 0, 0, 0], [w, h, w, h])
+            dets.append(Detection((float(b[0]), float(b[1]), float(b[2]), float(b[3])), float(score[i]), int(cls[i]), self.class_names[int(cls[i])]))
+        return dets
+
+
+def _have_onnxruntime() -> bool:
+    try:
+        import onnxruntime  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def export_onnx(weights: str | Path, out_path: str | Path, image_size: int = 416) -> Path:
+    """Export the raw network (input 1x3xHxW in [0, 1], output the head logits) to ONNX (needs the onnx package)."""
+    model = load_model(weights)
+    torch.onnx.export(model, (torch.zeros(1, 3, image_size, image_size),), str(out_path), input_names=["images"],
+                      output_names=["raw"], opset_version=17, dynamic_axes={"images": {2: "h", 3: "w"}, "raw": {2: "gh", 3: "gw"}},
+                      dynamo=False)
+    return Path(out_path)

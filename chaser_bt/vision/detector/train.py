@@ -1,0 +1,156 @@
+"""Train the detector on a YOLO-format image folder (paper appendix model card: fine-tune all layers,
+standard schedule and augmentation). Seeded, resumable from its checkpoint, with a progress line.
+
+Images are letterboxed once to the detector scale (``image_size`` / longest side) and kept in memory;
+each batch is made of mosaics (4 images, random scale) with HSV jitter and horizontal flips.
+Optimiser: AdamW with a linear warm-up and a cosine decay; an exponential moving average of the
+weights (YOLOv5) is what gets saved.
+"""
+
+from __future__ import annotations
+
+import copy
+import logging
+import math
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import torch
+
+from chaser_bt.vision.detector.augment import flip_horizontal, hsv_jitter, mosaic
+from chaser_bt.vision.detector.loss import detection_loss
+from chaser_bt.vision.detector.model import DetectorConfig, TinyYolo
+
+__all__ = ["TrainConfig", "load_yolo_folder", "train_detector"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Training settings (see module docstring)."""
+
+    data_dir: str
+    out_path: str
+    steps: int = 1500
+    batch: int = 24
+    crop: int = 288
+    image_size: int = 416
+    lr: float = 2e-3
+    weight_decay: float = 5e-4
+    scale_range: tuple[float, float] = (0.55, 1.8)
+    seed: int = 0
+    threads: int = 1
+    checkpoint_every: int = 50
+    ema_decay: float = 0.995
+
+
+def load_yolo_folder(data_dir: str | Path, image_size: int) -> tuple[list[np.ndarray], list[np.ndarray], tuple[str, ...]]:
+    """Images (resized so the longest side is ``image_size``) and (N, 5) pixel boxes from a YOLO folder."""
+    root = Path(data_dir)
+    classes = tuple(x.strip() for x in (root / "classes.txt").read_text().splitlines() if x.strip())
+    images, boxes = [], []
+    for img_path in sorted((root / "images").glob("*.jpg")):
+        img = cv2.imread(str(img_path), cv2.IMREAD_COLOR)
+        if img is None:
+            raise ValueError(f"{img_path}: not a readable image")
+        h, w = img.shape[:2]
+        s = image_size / max(h, w)
+        img = cv2.resize(img, (int(round(w * s)), int(round(h * s))), interpolation=cv2.INTER_AREA)
+        lab = root / "labels" / (img_path.stem + ".txt")
+        rows = []
+        for n, line in enumerate(lab.read_text().splitlines() if lab.exists() else [], 1):
+            parts = line.split()
+            if not parts:
+                continue
+            if len(parts) != 5:
+                raise ValueError(f"{lab}:{n}: expected 'class cx cy w h', got {line!r}")
+            c, cx, cy, bw, bh = int(parts[0]), *map(float, parts[1:])
+            rows.append([c, (cx - bw / 2) * img.shape[1], (cy - bh / 2) * img.shape[0], (cx + bw / 2) * img.shape[1], (cy + bh / 2) * img.shape[0]])
+        images.append(img)
+        boxes.append(np.array(rows, float).reshape(-1, 5))
+    if not images:
+        raise ValueError(f"{root / 'images'}: no .jpg images")
+    return images, boxes, classes
+
+
+def _batch(images, boxes, cfg: TrainConfig, rng: np.random.Generator) -> tuple[torch.Tensor, list[torch.Tensor]]:
+    xs, ts = [], []
+    for _ in range(cfg.batch):
+        idx = rng.integers(len(images), size=4)
+        img, b = mosaic([images[i] for i in idx], [boxes[i] for i in idx], cfg.crop, rng, cfg.scale_range, focus=0.8)
+        img = hsv_jitter(img, rng)
+        if rng.random() < 0.5:
+            img, b = flip_horizontal(img, b)
+        xs.append(img)
+        ts.append(torch.from_numpy(b).float())
+    x = torch.from_numpy(np.stack(xs)[..., ::-1].copy()).permute(0, 3, 1, 2).float() / 255.0
+    return x, ts
+
+
+def train_detector(cfg: TrainConfig, resume: bool = True, progress=sys.stderr) -> Path:
+    """Train and save ``{"config", "state_dict", "step"}`` to ``cfg.out_path``; resumes from ``<out>.ckpt``."""
+    torch.set_num_threads(cfg.threads)
+    torch.manual_seed(cfg.seed)
+    rng = np.random.default_rng(cfg.seed)
+    images, boxes, classes = load_yolo_folder(cfg.data_dir, cfg.image_size)
+    det_cfg = DetectorConfig(num_classes=len(classes), class_names=classes)
+    model = TinyYolo(det_cfg)
+    ema = copy.deepcopy(model).eval()
+    opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    out = Path(cfg.out_path)
+    ckpt = out.with_suffix(".ckpt")
+    step = 0
+    if resume and ckpt.exists():
+        state = torch.load(ckpt, weights_only=False)
+        model.load_state_dict(state["model"])
+        ema.load_state_dict(state["ema"])
+        opt.load_state_dict(state["opt"])
+        rng.bit_generator.state = state["rng"]
+        torch.set_rng_state(state["torch_rng"])
+        step = int(state["step"])
+        log.info("resumed from %s at step %d", ckpt, step)
+    warm = min(100, cfg.steps // 10)
+    t0 = time.monotonic()
+    first = step
+    model.train()
+    while step < cfg.steps:
+        lr = cfg.lr * (step + 1) / warm if step < warm else cfg.lr * 0.5 * (1 + math.cos(math.pi * (step - warm) / max(cfg.steps - warm, 1)))
+        for g in opt.param_groups:
+            g["lr"] = lr
+        x, ts = _batch(images, boxes, cfg, rng)
+        loss, parts = detection_loss(model(x), ts, det_cfg.stride)
+        opt.zero_grad()
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
+        opt.step()
+        d = cfg.ema_decay * (1 - math.exp(-(step + 1) / 200))
+        with torch.no_grad():
+            for pe, pm in zip(ema.state_dict().values(), model.state_dict().values()):
+                if pe.dtype.is_floating_point:
+                    pe.mul_(d).add_(pm.detach(), alpha=1 - d)
+                else:
+                    pe.copy_(pm)
+        step += 1
+        if progress is not None and (step % 10 == 0 or step == cfg.steps):
+            rate = (time.monotonic() - t0) / max(step - first, 1)
+            bar = "#" * int(30 * step / cfg.steps)
+            progress.write(f"\r[{bar:<30}] {step}/{cfg.steps} loss {float(loss.detach()):.3f} (obj {parts['obj']:.3f} box {parts['box']:.3f} "
+                           f"cls {parts['cls']:.3f}) lr {lr:.1e} {rate:.2f} s/step eta {rate * (cfg.steps - step) / 60:.1f} min\n")
+            progress.flush()
+        if step % cfg.checkpoint_every == 0 or step == cfg.steps:
+            out.parent.mkdir(parents=True, exist_ok=True)
+            torch.save({"model": model.state_dict(), "ema": ema.state_dict(), "opt": opt.state_dict(), "rng": rng.bit_generator.state,
+                        "torch_rng": torch.get_rng_state(), "step": step}, ckpt)
+            save_weights(ema, out, step)
+    return out
+
+
+def save_weights(model: TinyYolo, path: str | Path, step: int) -> None:
+    """The shipped file: config and half-precision weights (loads back as float32)."""
+    sd = {k: (v.half() if v.dtype == torch.float32 else v) for k, v in model.state_dict().items()}
+    torch.save({"config": model.config.to_dict(), "state_dict": sd, "step": step}, path)

@@ -1,0 +1,64 @@
+"""Where frames come from: the FrameSource protocol and its cv2.VideoCapture implementation.
+
+A mission asks a source for the frame at mission time ``t``; a live or recorded camera returns its
+next frame stamped with ``t``. The simulator's rendered camera (``sitl.camera.frame_source``)
+implements the same protocol; a video file, a device index or any URL OpenCV opens (RTSP, HTTP,
+GStreamer pipeline) go through :class:`VideoCaptureSource`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import cv2
+import numpy as np
+
+__all__ = ["Frame", "FrameSource", "VideoCaptureSource"]
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One BGR image (height x width x 3, uint8) taken at mission time ``t`` (s)."""
+
+    t: float
+    image: np.ndarray
+    index: int
+
+
+@runtime_checkable
+class FrameSource(Protocol):
+    def read(self, t: float) -> Frame | None:
+        """The frame for mission time ``t``, or None when the source has none (ended, dropped)."""
+        ...
+
+    def close(self) -> None: ...
+
+
+class VideoCaptureSource:
+    """Frames from ``cv2.VideoCapture(target)``: a file path, a device index or a stream URL.
+
+    Args:
+        target: path/URL string or integer device index.
+        size: (width, height) to resize frames to, or None to keep them.
+    """
+
+    def __init__(self, target: str | int, size: tuple[int, int] | None = None) -> None:
+        self.capture = cv2.VideoCapture(target)
+        if not self.capture.isOpened():
+            raise ValueError(f"cannot open video source {target!r}")
+        self.size = size
+        self._index = 0
+
+    def read(self, t: float) -> Frame | None:
+        ok, image = self.capture.read()
+        if not ok or image is None:
+            return None
+        if self.size is not None and (image.shape[1], image.shape[0]) != tuple(self.size):
+            image = cv2.resize(image, tuple(self.size), interpolation=cv2.INTER_AREA)
+        frame = Frame(t, image, self._index)
+        self._index += 1
+        return frame
+
+    def close(self) -> None:
+        self.capture.release()

@@ -1,0 +1,163 @@
+"""Visual trackers between detector frames (paper section 3.1, "Visual Tracking").
+
+The detector is too slow to run on every frame, so each detection seeds an OpenCV tracker that
+follows the box on the frames in between. Trackers cannot detect, so on every detector frame
+they are checked against the detections: a track that overlaps a detection is reseeded on it, a
+track that overlaps none is pruned (the paper's tracker drifting onto a bush), and a detection
+that no track overlaps starts a new track.
+
+Trackers in the installed OpenCV (opencv-contrib 5.0): cv2.TrackerKCF, TrackerCSRT, TrackerMIL
+(and the learned DaSiamRPN / Nano / Vit, which need model files we do not ship); cv2.legacy adds
+MOSSE, MedianFlow, Boosting and TLD. :data:`TRACKER_KINDS` lists the ones usable here.
+
+Small boxes give correlation trackers too little texture, so a tracker works on a window at least
+``min_window_px`` wide around the box and reports the box with the detection's size at the
+tracked centre.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import cv2
+import numpy as np
+
+from chaser_bt.vision.detector.evaluate import iou_matrix
+from chaser_bt.vision.detection import Detection
+
+__all__ = ["TRACKER_KINDS", "make_tracker", "Track", "TrackerBank"]
+
+log = logging.getLogger(__name__)
+
+TRACKER_KINDS: dict[str, Callable[[], object]] = {
+    "kcf": cv2.TrackerKCF_create,
+    "csrt": cv2.TrackerCSRT_create,
+    "mil": cv2.TrackerMIL_create,
+    "mosse": cv2.legacy.TrackerMOSSE_create,
+    "medianflow": cv2.legacy.TrackerMedianFlow_create,
+}
+
+
+def make_tracker(kind: str):
+    """A fresh OpenCV tracker of ``kind`` (one of :data:`TRACKER_KINDS`)."""
+    try:
+        return TRACKER_KINDS[kind]()
+    except KeyError:
+        raise ValueError(f"unknown tracker {kind!r}; available: {sorted(TRACKER_KINDS)}") from None
+
+
+@dataclass
+class Track:
+    """One target followed in the image."""
+
+    track_id: int
+    box: tuple[float, float, float, float]
+    class_name: str
+    score: float
+    t_detected: float
+    t: float
+    size: tuple[float, float]
+    hits: int = 1
+    trackers: list = field(default_factory=list)
+
+    @property
+    def centre(self) -> tuple[float, float]:
+        return (0.5 * (self.box[0] + self.box[2]), 0.5 * (self.box[1] + self.box[3]))
+
+
+def _window(box, min_px: float, w: int, h: int) -> tuple[int, int, int, int]:
+    cx, cy = 0.5 * (box[0] + box[2]), 0.5 * (box[1] + box[3])
+    bw, bh = max(box[2] - box[0], min_px), max(box[3] - box[1], min_px)
+    x0 = int(round(min(max(cx - bw / 2, 0), w - bw)))
+    y0 = int(round(min(max(cy - bh / 2, 0), h - bh)))
+    return (x0, y0, int(round(bw)), int(round(bh)))
+
+
+class TrackerBank:
+    """Zero or more trackers per track, reseeded and pruned by detections (see module docstring).
+
+    Args:
+        kinds: tracker kinds run on every track ([] = detections only, boxes held between them).
+        match_iou: overlap for a track and a detection to agree.
+        min_window_px: smallest tracker window.
+        max_tracks: most tracks kept (the highest scores).
+    """
+
+    def __init__(self, kinds: Sequence[str] = ("mosse", "medianflow"), match_iou: float = 0.2, min_window_px: float = 32.0, max_tracks: int = 5) -> None:
+        for k in kinds:
+            make_tracker(k)
+        self.kinds = tuple(kinds)
+        self.match_iou = match_iou
+        self.min_window_px = min_window_px
+        self.max_tracks = max_tracks
+        self.tracks: list[Track] = []
+        self._next_id = 1
+        self.pruned = 0
+
+    def _seed(self, frame: np.ndarray, track: Track) -> None:
+        h, w = frame.shape[:2]
+        win = _window(track.box, self.min_window_px, w, h)
+        track.trackers = []
+        for k in self.kinds:
+            tr = make_tracker(k)
+            try:
+                tr.init(frame, win)
+                track.trackers.append(tr)
+            except cv2.error as e:
+                log.debug("tracker %s failed to start: %s", k, e)
+
+    def correct(self, frame: np.ndarray, detections: Sequence[Detection], t: float) -> list[Track]:
+        """A detector frame: reseed agreeing tracks, prune the rest, start tracks on new detections."""
+        kept: list[Track] = []
+        used = set()
+        if self.tracks and detections:
+            ious = iou_matrix(np.array([tr.box for tr in self.tracks]), np.array([d.box for d in detections]))
+        else:
+            ious = np.zeros((len(self.tracks), len(detections)))
+        for i, track in enumerate(self.tracks):
+            order = [j for j in np.argsort(-ious[i]) if j not in used and ious[i, j] >= self.match_iou] if len(detections) else []
+            if not order:
+                self.pruned += 1
+                continue
+            j = int(order[0])
+            used.add(j)
+            d = detections[j]
+            track.box, track.class_name, track.score, track.t_detected, track.t = d.box, d.class_name, d.score, t, t
+            track.size = (d.box[2] - d.box[0], d.box[3] - d.box[1])
+            track.hits += 1
+            self._seed(frame, track)
+            kept.append(track)
+        for j, d in enumerate(detections):
+            if j in used:
+                continue
+            track = Track(self._next_id, d.box, d.class_name, d.score, t, t, (d.box[2] - d.box[0], d.box[3] - d.box[1]))
+            self._next_id += 1
+            self._seed(frame, track)
+            kept.append(track)
+        self.tracks = sorted(kept, key=lambda tr: -tr.score)[: self.max_tracks]
+        return self.tracks
+
+    def advance(self, frame: np.ndarray, t: float) -> list[Track]:
+        """A frame between detections: move each track by its trackers (mean centre); drop tracks all trackers lost."""
+        alive = []
+        for track in self.tracks:
+            if not self.kinds:
+                alive.append(track)
+                continue
+            centres = []
+            for tr in track.trackers:
+                ok, (x, y, bw, bh) = tr.update(frame)
+                if ok:
+                    centres.append((x + bw / 2, y + bh / 2))
+            if not centres:
+                self.pruned += 1
+                continue
+            cx, cy = np.mean(centres, axis=0)
+            sw, sh = track.size
+            track.box = (float(cx - sw / 2), float(cy - sh / 2), float(cx + sw / 2), float(cy + sh / 2))
+            track.t = t
+            alive.append(track)
+        self.tracks = alive
+        return self.tracks

@@ -1,0 +1,51 @@
+"""Dataset writer (YOLO layout) and the training augmentations."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from chaser_bt.vision.detector.augment import flip_horizontal, hsv_jitter, letterbox, mosaic
+from sitl.camera.dataset import CLASSES, SPLITS, read_yolo_labels, write_dataset
+
+
+def test_written_dataset_round_trips_its_labels(tmp_path):
+    out = write_dataset(tmp_path / "d", 6, seed=3, split="heldout")
+    assert (out / "classes.txt").read_text().split() == list(CLASSES)
+    images = sorted((out / "images").glob("*.jpg"))
+    assert len(images) == 6
+    boxes = [read_yolo_labels(out / "labels" / (p.stem + ".txt"), 640, 480) for p in images]
+    allb = np.concatenate(boxes)
+    assert len(allb) >= 3
+    assert np.all(allb[:, 1:] >= -0.01) and np.all(allb[:, [1, 3]] <= 640.01) and np.all(allb[:, [2, 4]] <= 480.01)
+    assert set(allb[:, 0].astype(int)) <= {0, 1}
+
+
+def test_training_and_heldout_splits_share_no_ground():
+    assert not set(SPLITS["train"].ground_seeds) & set(SPLITS["heldout"].ground_seeds)
+
+
+def test_mosaic_keeps_boxes_on_their_pixels():
+    rng = np.random.default_rng(0)
+    imgs, boxes = [], []
+    for k in range(4):
+        img = np.zeros((100, 120, 3), np.uint8)
+        img[40:60, 50:70] = 255
+        imgs.append(img)
+        boxes.append(np.array([[k % 2, 50.0, 40.0, 70.0, 60.0]]))
+    for _ in range(10):
+        out, b = mosaic(imgs, boxes, 128, rng, scale_range=(1.0, 1.0), focus=1.0)
+        assert out.shape == (128, 128, 3) and len(b) >= 1
+        for _, x0, y0, x1, y1 in b:
+            patch = out[int(np.ceil(y0)):int(y1), int(np.ceil(x0)):int(x1)]
+            assert patch.size and patch.min() == 255
+
+
+def test_flip_letterbox_and_hsv():
+    img = np.zeros((100, 200, 3), np.uint8)
+    img[10:20, 30:50] = 200
+    f, b = flip_horizontal(img, np.array([[0, 30.0, 10.0, 50.0, 20.0]]))
+    assert b[0, 1:].tolist() == [150.0, 10.0, 170.0, 20.0] and f[15, 160].max() == 200
+    lb, scale, (px, py) = letterbox(img, 64)
+    assert lb.shape == (64, 64, 3) and scale == pytest.approx(0.32) and (px, py) == (0, 16)
+    assert hsv_jitter(img, np.random.default_rng(0)).shape == img.shape

@@ -1,0 +1,81 @@
+"""The detector: metric definitions checked by hand, and the shipped weights on a freshly rendered set."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from chaser_bt.vision.detector.evaluate import ap11, evaluate_detections, iou_matrix
+from chaser_bt.vision.detector.inference import DEFAULT_WEIGHTS, Detector, nms
+from chaser_bt.vision.detector.loss import _assign, detection_loss, giou
+from chaser_bt.vision.detector.model import DetectorConfig, TinyYolo, decode
+
+
+def test_iou_and_giou_by_hand():
+    a, b = np.array([[0, 0, 2, 2]]), np.array([[1, 1, 3, 3]])
+    assert iou_matrix(a, b)[0, 0] == pytest.approx(1 / 7)
+    # Hull 3x3 = 9, union 7: GIoU = 1/7 - 2/9.
+    assert float(giou(torch.tensor(a, dtype=torch.float), torch.tensor(b, dtype=torch.float))[0]) == pytest.approx(1 / 7 - 2 / 9)
+
+
+def test_eleven_point_ap_by_hand():
+    # Two ground truths; ranked predictions TP, FP, TP: recall 0.5, 0.5, 1; precision 1, 0.5, 2/3.
+    rec, prec = np.array([0.5, 0.5, 1.0]), np.array([1.0, 0.5, 2 / 3])
+    assert ap11(rec, prec) == pytest.approx((6 * 1.0 + 5 * 2 / 3) / 11)
+
+
+def test_evaluate_detections_counts_matches_once_and_by_class():
+    gt = [np.array([[0, 0, 0, 10, 10], [1, 20, 20, 30, 30]])]
+    preds = [[((0, 0, 10, 10), 0.9, 0), ((1, 1, 10, 10), 0.8, 0), ((20, 20, 30, 30), 0.7, 0)]]
+    m = evaluate_detections(preds, gt, 2)
+    # Class 0: TP then two FPs (duplicate, wrong class) -> AP 1; class 1: never found -> AP 0.
+    assert m.ap50_per_class == {0: pytest.approx(1.0), 1: 0.0}
+    assert m.precision == pytest.approx(1 / 3) and m.recall == pytest.approx(1 / 2)
+
+
+def test_nms_keeps_the_best_of_overlapping_boxes():
+    boxes = np.array([[0, 0, 10, 10], [1, 1, 10, 10], [50, 50, 60, 60]], float)
+    assert nms(boxes, np.array([0.5, 0.9, 0.3]), 0.45) == [1, 2]
+
+
+def test_assignment_puts_a_box_in_its_centre_cell_and_the_two_nearest_neighbours():
+    bi, ci, rows = _assign([torch.tensor([[0, 18.0, 18.0, 22.0, 22.0]])], 8, 8, 8)  # centre (20, 20): cell (2, 2), fraction 0.5
+    assert sorted(ci.tolist()) == sorted([2 * 8 + 2, 2 * 8 + 3, 3 * 8 + 2])
+
+
+def test_network_shapes_and_a_finite_loss_with_and_without_targets():
+    model = TinyYolo(DetectorConfig())
+    raw = model(torch.rand(2, 3, 64, 96))
+    assert raw.shape == (2, 7, 8, 12)
+    assert decode(raw, 8).shape == (2, 96, 4 + 1 + 2)
+    loss, parts = detection_loss(raw, [torch.tensor([[1, 10.0, 10.0, 30.0, 40.0]]), torch.zeros(0, 5)], 8)
+    loss.backward()
+    assert torch.isfinite(loss) and set(parts) == {"obj", "box", "cls"}
+
+
+def test_shipped_weights_load_by_default_and_detect_targets_on_a_fresh_heldout_set():
+    from sitl.camera.dataset import DatasetRenderer, frame_boxes
+
+    assert DEFAULT_WEIGHTS.exists() and DEFAULT_WEIGHTS.stat().st_size < 4_000_000
+    det = Detector(conf_threshold=0.005)
+    data = DatasetRenderer("heldout", ground_size_px=1024)
+    rng = np.random.default_rng(20240601)
+    frames = [data.sample(rng) for _ in range(40)]
+    preds = [[(d.box, d.score, d.class_id) for d in det(f.image)] for f in frames]
+    m = evaluate_detections(preds, [frame_boxes(f) for f in frames], 2)
+    assert m.ap50 >= 0.8, m
+
+
+def test_onnx_backend_gives_the_torch_detections():
+    pytest.importorskip("onnxruntime")
+    from chaser_bt.vision.detector.inference import DEFAULT_ONNX
+
+    assert DEFAULT_ONNX.exists()
+    img = (np.random.default_rng(0).random((480, 640, 3)) * 255).astype(np.uint8)
+    a = Detector(conf_threshold=0.001, backend="torch")(img)
+    b = Detector(conf_threshold=0.001, backend="onnx")(img)
+    assert len(a) == len(b) > 0
+    for x, y in zip(a, b):
+        assert x.class_id == y.class_id and x.score == pytest.approx(y.score, abs=1e-4)
+        assert np.allclose(x.box, y.box, atol=1e-2)

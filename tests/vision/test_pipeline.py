@@ -1,0 +1,97 @@
+"""Frames -> detections -> tracks -> TargetEstimate, on a rendered follow sequence and with fakes."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from chaser_bt.vision.camera import CameraModel
+from chaser_bt.vision.detector.inference import Detection, Detector
+from chaser_bt.vision.frame_source import Frame, VideoCaptureSource
+from chaser_bt.vision.pipeline import CameraSensor, OwnshipPose, PipelineConfig, VisionPipeline
+from chaser_bt.vision.projection import Projector
+from sitl.camera.sequences import follow_sequence
+
+CAM = CameraModel(width_px=640, height_px=480)
+
+
+def test_pipeline_on_a_rendered_follow_sequence_keeps_the_target_with_small_bearing_error():
+    views = list(follow_sequence(CAM, 45, seed=11))
+    pipe = VisionPipeline(CAM, Detector(), PipelineConfig(detect_every=3))
+    proj = Projector(CAM)
+    errs, ranges = [], []
+    for k, v in enumerate(views):
+        est = pipe.process(Frame(v.t, v.image, k), OwnshipPose(v.t, v.position_enu, v.velocity_enu, v.attitude_measured))
+        if est is None or v.label is None:
+            continue
+        lb = v.label.box
+        truth = proj.bearing_enu(np.array([[(lb[0] + lb[2]) / 2, (lb[1] + lb[3]) / 2]]), v.attitude_true)[0]
+        errs.append(math.degrees(math.acos(min(1.0, float(est.bearing_enu @ truth)))))
+        true_range = np.linalg.norm(v.target_enu - CAM.position_enu(v.position_enu, v.attitude_true))
+        ranges.append(abs(est.range_m - true_range) / true_range)
+        assert est.source == "vision" and 0 <= est.confidence <= 1
+    assert len(errs) >= 40
+    assert np.percentile(errs, 95) < 1.5
+    assert np.median(ranges) < 0.3
+    assert pipe.detector_frames == 15
+
+
+class _Fixed:
+    """A detector that always reports one box."""
+
+    def __init__(self, box):
+        self.box = box
+
+    def __call__(self, image):
+        return [Detection(self.box, 0.8, 0, "s1000")] if self.box else []
+
+
+def test_estimate_lies_along_the_bearing_with_covariance_long_on_the_line_of_sight():
+    cam = CameraModel(width_px=320, height_px=240, tilt_rad=0.0)
+    fx = cam.focal_px[0]
+    width = 1.42 * fx / 20.0  # an S1000 20 m away, box centred
+    pipe = VisionPipeline(cam, _Fixed((160 - width / 2, 110, 160 + width / 2, 130)), PipelineConfig(detect_every=1, tracker_kinds=()))
+    from scipy.spatial.transform import Rotation
+
+    pose = OwnshipPose(0.0, np.array([0.0, 0.0, 10.0]), np.zeros(3), Rotation.identity())
+    est = pipe.process(Frame(0.0, np.zeros((240, 320, 3), np.uint8), 0), pose)
+    assert est.range_m == pytest.approx(20.0, rel=1e-3)
+    assert est.bearing_enu == pytest.approx([1.0, 0.0, 0.0], abs=1e-12)
+    assert est.position_enu == pytest.approx([20.0, 0.0, 10.0], rel=1e-3)
+    w, v = np.linalg.eigh(est.covariance_enu)
+    assert abs(v[:, -1] @ est.bearing_enu) == pytest.approx(1.0)  # largest uncertainty along the line of sight
+    # Telemetry range overrides the box.
+    est2 = VisionPipeline(cam, _Fixed((150, 110, 170, 130)), PipelineConfig(detect_every=1, tracker_kinds=())).process(
+        Frame(0.0, np.zeros((240, 320, 3), np.uint8), 0), pose, target_range_m=33.0)
+    assert est2.range_m == pytest.approx(33.0)
+
+
+def test_no_detection_means_no_estimate_and_tracks_expire():
+    pipe = VisionPipeline(CAM, _Fixed(None), PipelineConfig(detect_every=1))
+    from scipy.spatial.transform import Rotation
+
+    pose = OwnshipPose(0.0, np.zeros(3), np.zeros(3), Rotation.identity())
+    assert pipe.process(Frame(0.0, np.zeros((480, 640, 3), np.uint8), 0), pose) is None
+
+
+def test_video_file_source_reads_frames_and_camera_sensor_runs_the_pipeline(tmp_path):
+    import cv2
+
+    path = str(tmp_path / "clip.avi")
+    writer = cv2.VideoWriter(path, cv2.VideoWriter_fourcc(*"MJPG"), 10, (64, 48))
+    for k in range(3):
+        writer.write(np.full((48, 64, 3), 40 * k, np.uint8))
+    writer.release()
+    src = VideoCaptureSource(path, size=(32, 24))
+    frames = [src.read(0.1 * k) for k in range(4)]
+    assert [f.image.shape for f in frames[:3]] == [(24, 32, 3)] * 3 and frames[3] is None
+    assert [f.index for f in frames[:3]] == [0, 1, 2]
+    with pytest.raises(ValueError, match="cannot open"):
+        VideoCaptureSource(str(tmp_path / "missing.avi"))
+    src2 = VideoCaptureSource(path)
+    sensor = CameraSensor(src2, VisionPipeline(CameraModel(width_px=64, height_px=48), _Fixed(None)))
+    from scipy.spatial.transform import Rotation
+
+    assert sensor.step(0.0, OwnshipPose(0.0, np.zeros(3), np.zeros(3), Rotation.identity())) is None

@@ -1,0 +1,117 @@
+"""VisionPipeline and TargetInView behaviours in a one-node tree, with a scripted camera."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+import py_trees
+import pytest
+from scipy.spatial.transform import Rotation
+
+from chaser_bt.cue import TargetCue
+from chaser_bt.mission.clock import ManualClock
+from chaser_bt.tree import load_tree_text
+from chaser_bt.vehicle.state import VehicleState
+from chaser_bt.vision.camera import CameraModel
+from chaser_bt.vision.detector.inference import Detection
+from chaser_bt.vision.frame_source import Frame
+from chaser_bt.vision.pipeline import CameraSensor, PipelineConfig, VisionPipeline
+
+Status = py_trees.common.Status
+CAM = CameraModel(width_px=320, height_px=240, tilt_rad=0.0)
+
+
+class _Source:
+    def read(self, t):
+        return Frame(t, np.zeros((240, 320, 3), np.uint8), 0)
+
+    def close(self):
+        pass
+
+
+class _Detector:
+    def __init__(self):
+        self.box = (150.0, 110.0, 170.0, 130.0)
+
+    def __call__(self, image):
+        return [Detection(self.box, 0.9, 0, "s1000")] if self.box else []
+
+
+def _tree(body: str, detector, clock):
+    tree = load_tree_text("version: 1\ntrees:\n  Test:\n    " + body + "\n", source="<test>")
+    sensor = CameraSensor(_Source(), VisionPipeline(CAM, detector, PipelineConfig(detect_every=1, tracker_kinds=())))
+    bt = py_trees.trees.BehaviourTree(tree.root)
+    bt.setup(link=object(), clock=clock, camera=sensor)
+    return bt
+
+
+def _state():
+    return VehicleState(position_enu=np.array([0.0, 0.0, 20.0]), velocity_enu=np.zeros(3), attitude=Rotation.identity())
+
+
+def test_vision_pipeline_writes_the_estimate_and_target_in_view_follows_its_age():
+    clock = ManualClock(10.0)
+    det = _Detector()
+    bb = py_trees.blackboard.Client(name="test")
+    bb.register_key("/vehicle/state", access=py_trees.common.Access.WRITE)
+    bb.register_key("/target/estimate", access=py_trees.common.Access.READ)
+    bb.set("/vehicle/state", _state())
+    vision = _tree("VisionPipeline: {}", det, clock)
+    in_view = _tree("TargetInView: {max_age_s: 0.5}", det, clock)
+    vision.tick()
+    assert vision.root.status == Status.SUCCESS
+    est = bb.get("/target/estimate")
+    assert est.t == 10.0 and est.source == "vision" and est.bearing_enu == pytest.approx([1.0, 0.0, 0.0], abs=1e-9)
+    in_view.tick()
+    assert in_view.root.status == Status.SUCCESS
+    clock.advance(1.0)
+    in_view.tick()
+    assert in_view.root.status == Status.FAILURE  # estimate 1 s old
+    det.box = None
+    vision.tick()
+    assert vision.root.status == Status.FAILURE
+
+
+def test_range_from_telemetry_when_asked():
+    clock = ManualClock(5.0)
+    bb = py_trees.blackboard.Client(name="test")
+    bb.register_key("/vehicle/state", access=py_trees.common.Access.WRITE)
+    bb.register_key("/target/telemetry", access=py_trees.common.Access.WRITE)
+    bb.register_key("/target/estimate", access=py_trees.common.Access.READ)
+    bb.set("/vehicle/state", _state())
+    bb.set("/target/telemetry", TargetCue(t=5.0, position_enu=np.array([25.0, 0.0, 20.0]), source="telemetry"))
+    vision = _tree("VisionPipeline: {range_from_telemetry: true}", _Detector(), clock)
+    vision.tick()
+    assert bb.get("/target/estimate").range_m == pytest.approx(25.0, abs=0.01)
+
+
+def test_setup_without_a_camera_names_what_is_missing():
+    tree = load_tree_text("version: 1\ntrees:\n  Test:\n    VisionPipeline: {}\n", source="<test>")
+    with pytest.raises(KeyError, match="camera=CameraSensor"):
+        py_trees.trees.BehaviourTree(tree.root).setup(link=object(), clock=ManualClock(0.0))
+
+
+def test_cli_commands_parse_and_refuse_a_missing_folder(tmp_path, capsys):
+    from chaser_bt.vision.commands import add_command
+
+    parser = argparse.ArgumentParser()
+    add_command(parser.add_subparsers())
+    args = parser.parse_args(["eval-detector", "--data", str(tmp_path / "nope")])
+    assert args.handler(args) == 2 and "no images/ folder" in capsys.readouterr().err
+    args = parser.parse_args(["train-detector", "--data", str(tmp_path / "nope")])
+    assert args.handler(args) == 2
+
+
+def test_eval_detector_prints_model_card_metrics_on_a_rendered_folder(tmp_path, capsys):
+    from chaser_bt.vision.commands import add_command
+    from sitl.camera.dataset import write_dataset
+
+    write_dataset(tmp_path / "d", 5, seed=4, split="heldout")
+    parser = argparse.ArgumentParser()
+    add_command(parser.add_subparsers())
+    args = parser.parse_args(["eval-detector", "--data", str(tmp_path / "d"), "--sizes", "416"])
+    assert args.handler(args) == 0
+    row = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert row["images"] == 5 and set(row) >= {"ap50", "iou", "precision", "recall", "f1", "fps"}
