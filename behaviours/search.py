@@ -10,6 +10,8 @@ FAILURE (and hover) without a cue, outside GUIDED, or when the belief cannot be 
 
 from __future__ import annotations
 
+import abc
+
 import math
 
 import numpy as np
@@ -44,8 +46,9 @@ class _BeliefSearch(CommandingBehaviour):
     }
     OUTPUT_PORTS = {"belief": output_port(SearchSnapshot, "Belief, belief gain and set-point", default_key="/search/belief")}
 
+    @abc.abstractmethod
     def make_planner(self, sensor: SensorModel):
-        raise NotImplementedError
+        """The planner this search flies (RHC or max-belief) over ``sensor``'s footprints."""
 
     def initialise(self) -> None:
         self._session: SearchSession | None = None

@@ -16,6 +16,7 @@ STABILIZE 0, ALT_HOLD 2, GUIDED 4, LOITER 5, RTL 6, LAND 9, BRAKE 17. Angles are
 
 from __future__ import annotations
 
+import abc
 import math
 from typing import TYPE_CHECKING
 
@@ -257,7 +258,7 @@ def heading_to(dx: float, dy: float) -> float:
     return math.atan2(dx, dy)
 
 
-class FlightMode:
+class FlightMode(abc.ABC):
     """One ArduCopter flight mode: entry checks, and a run() called every control step."""
 
     number = -1
@@ -271,9 +272,9 @@ class FlightMode:
         ap.reset_controller()
         return None
 
+    @abc.abstractmethod
     def run(self, ap: Autopilot, dt: float) -> None:
         """Compute this step's commands into ``ap.phys``."""
-        raise NotImplementedError
 
     def landing(self) -> bool:
         """The mode is descending to land (MAV_LANDED_STATE_LANDING)."""

@@ -19,6 +19,8 @@ Conventions shared by all of them:
 
 from __future__ import annotations
 
+import abc
+
 from collections.abc import Generator, Iterator, Mapping
 from typing import Any, ClassVar
 
@@ -81,8 +83,9 @@ class ControlNode(ControlPorts, py_trees.composites.Composite, register=False):
     def start(self) -> None:
         """A new run begins (the node was not RUNNING): reset what the run keeps."""
 
+    @abc.abstractmethod
     def step(self) -> Steps:
-        raise NotImplementedError
+        """Tick children (``yield from self.tick_child(c)``) and return this node's new status."""
 
     def halted(self) -> None:
         """Reset what a halt resets (called by ``stop(INVALID)``)."""
