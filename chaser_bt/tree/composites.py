@@ -21,13 +21,13 @@ from __future__ import annotations
 
 import abc
 
-from collections.abc import Generator, Iterator, Mapping
+from collections.abc import Iterator, Mapping
 from typing import Any, ClassVar
 
 import py_trees
 from py_trees.common import Status
 
-from chaser_bt.tree.node_base import SKIPPED, ControlPorts, PortCheck, halt
+from chaser_bt.tree.node_base import ControlPorts, PortCheck, SKIPPED, Steps, halt
 from chaser_bt.tree.ports import Port, input_port
 
 __all__ = [
@@ -43,7 +43,6 @@ __all__ = [
 ]
 
 Behaviour = py_trees.behaviour.Behaviour
-Steps = Generator[Behaviour, None, Status]
 
 
 class ControlNode(ControlPorts, py_trees.composites.Composite, register=False):

@@ -10,14 +10,14 @@ decorator skipped too, as in BT.CPP.
 
 from __future__ import annotations
 
-from collections.abc import Generator, Iterator, Mapping
+from collections.abc import Iterator, Mapping
 from typing import Any, ClassVar
 
 import py_trees
 from py_trees.common import Status
 
 from chaser_bt.mission.clock import Clock
-from chaser_bt.tree.node_base import SKIPPED, ControlPorts, PortCheck, check_count, now, require_clock
+from chaser_bt.tree.node_base import ControlPorts, PortCheck, SKIPPED, Steps, check_count, now, require_clock
 from chaser_bt.tree.ports import Port, input_port
 
 __all__ = [
@@ -35,7 +35,6 @@ __all__ = [
 ]
 
 Behaviour = py_trees.behaviour.Behaviour
-Steps = Generator[Behaviour, None, Status]
 
 
 class DecoratorNode(ControlPorts, py_trees.decorators.Decorator, register=False):

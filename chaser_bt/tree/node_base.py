@@ -8,7 +8,7 @@ ticked as SKIPPED, exactly where BT.CPP tests for ``NodeStatus::SKIPPED``.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Generator, Mapping
 from typing import Any, ClassVar
 
 import py_trees
@@ -17,6 +17,9 @@ from py_trees.ports import PortsMixin
 
 from chaser_bt.mission.clock import Clock
 from chaser_bt.tree.ports import Port
+
+#: What a control node's ``step()`` is: a generator that yields ticked nodes and returns a status.
+Steps = Generator[py_trees.behaviour.Behaviour, None, Status]
 
 __all__ = ["ControlPorts", "PortCheck", "SKIPPED", "check_count", "halt", "require_clock", "now"]
 

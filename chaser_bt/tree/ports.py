@@ -210,7 +210,7 @@ def _from_string(value: str, data_type: Any) -> Any:
         try:
             if is_instance_of_type(converted, data_type):
                 return converted
-        except NotImplementedError:
+        except NotImplementedError:  # py_trees cannot check this generic type: report a mismatch
             pass
     raise LiteralError(_mismatch(value, data_type))
 

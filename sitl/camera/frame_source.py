@@ -76,4 +76,4 @@ class SimulatorFrameSource:
         return out
 
     def close(self) -> None:
-        pass
+        """Nothing to release: frames are rendered on demand."""
