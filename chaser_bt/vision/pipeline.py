@@ -128,10 +128,12 @@ class CameraSensor:
 
     source: FrameSource
     pipeline: VisionPipeline
+    last_frame: Frame | None = field(default=None, init=False)  # the frame last processed (for streaming and logs)
 
     def step(self, t: float, ownship: OwnshipPose, target_range_m: float | None = None) -> TargetEstimate | None:
         """Read the frame for ``t`` and process it; None when there is no frame or no target."""
         frame = self.source.read(t)
         if frame is None:
             return None
+        self.last_frame = frame
         return self.pipeline.process(frame, ownship, target_range_m)
