@@ -1,0 +1,199 @@
+"""``chaser-bt replay LOG TREE`` and ``chaser-bt plot LOG``; the ``--record`` / ``--live`` flags of run and rehearse.
+
+``replay`` ticks a tree on a recorded flight (docs/logs.md) and prints its status changes and the
+radar correlator's associations, each compared with the recording; ``--json`` prints one object.
+With ``--check`` it exits 1 unless both are exactly as recorded. ``plot`` draws the paper's figures
+from a log into PNG files. Bad input (no such file, not a log, an invalid tree) exits 2.
+
+The lead wires recording into ``run`` and ``rehearse`` with :func:`add_recording_arguments` and
+:class:`RecordingHook`::
+
+    hook = RecordingHook.from_args(args)          # None without --record / --live; RecordingError: exit 2
+    # run:      runner.setup(); hook(runner, link, runner.resources) ... finally: hook.close()
+    # rehearse: rehearse(..., on_start=hook)      ... finally: hook.close()
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any, Mapping
+
+
+__all__ = ["add_command", "add_recording_arguments", "RecordingError", "RecordingHook", "run_replay", "run_plot"]
+
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+DEFAULT_PORT = 8765  # chaser_bt.log.live.DEFAULT_PORT, kept here so that every CLI start need not load foxglove
+
+
+def add_command(subparsers) -> None:
+    """Add ``replay`` and ``plot`` to the ``chaser-bt`` sub-commands."""
+    p = subparsers.add_parser("replay", help="tick a tree on a recorded flight (MCAP) and compare with the recording",
+                              description="Feed a recorded flight's telemetry, radar datagrams and camera frames into a "
+                                          "tree; print its status changes and the correlator's associations.")
+    p.add_argument("log", type=Path, help="flight log (.mcap) written with --record")
+    p.add_argument("tree", type=Path, help="tree to tick (the recorded one, or a changed one)")
+    p.add_argument("--correlator", choices=("gated", "alg1"),
+                   help="re-run the radar with this correlator (default: as recorded)")
+    p.add_argument("--check", action="store_true",
+                   help="exit 1 unless status changes and associations are exactly as recorded")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(handler=run_replay)
+
+    p = subparsers.add_parser("plot", help="draw the paper's figures from a flight log",
+                              description="Draw the overhead track, the relative geometry and the belief maps of a "
+                                          "recorded flight as PNG files.")
+    p.add_argument("log", type=Path, help="flight log (.mcap)")
+    p.add_argument("--out", type=Path, help="folder for the PNGs (default: LOG without .mcap, plus _plots)")
+    p.set_defaults(handler=run_plot)
+
+
+def add_recording_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--record FILE.mcap``, ``--record-frames``, ``--live [PORT]`` for ``run`` and ``rehearse``."""
+    parser.add_argument("--record", type=Path, metavar="FILE.mcap",
+                        help="record the flight to an MCAP file (opens in Foxglove; `chaser-bt replay`, `chaser-bt plot`)")
+    parser.add_argument("--record-frames", choices=("jpeg", "png"), default="jpeg",
+                        help="camera frames: jpeg, 5 per second (default), or png, every frame (lossless: replay "
+                             "re-runs the detector exactly)")
+    parser.add_argument("--live", type=int, nargs="?", const=DEFAULT_PORT, metavar="PORT",
+                        help=f"serve the flight live to Foxglove on ws://127.0.0.1:PORT (default {DEFAULT_PORT})")
+
+
+class RecordingError(ValueError):
+    """``--record`` or ``--live`` cannot work (no such folder, port taken): bad input, before anything flies."""
+
+
+class RecordingHook:
+    """Attaches a recorder (file and/or live view) when called with ``(runner, link or vehicle, resources)``.
+
+    The call signature is the rehearsal's ``on_start``; ``chaser-bt run`` calls it after
+    ``runner.setup()``. :meth:`close` (always, in a ``finally``) finishes the file and stops the server.
+    """
+
+    def __init__(self, record: Path | None, live_port: int | None, frame_format: str = "jpeg") -> None:
+        """Checks the file's folder and starts the live server at once, so a mistake stops the command
+        before it connects to a vehicle.
+
+        Raises:
+            RecordingError: the folder of ``record`` does not exist, or the live server cannot start.
+        """
+        from chaser_bt.log.live import LiveSink, LiveViewError
+
+        self.record, self.live_port, self.frame_format = record, live_port, frame_format
+        self.recorder = None
+        self.live = None
+        if record is not None and not Path(record).parent.is_dir():
+            raise RecordingError(f"--record {record}: no such folder {Path(record).parent}")
+        if live_port is not None:
+            try:
+                self.live = LiveSink(live_port)
+            except LiveViewError as exc:
+                raise RecordingError(f"--live {live_port}: {exc}") from None
+            print(f"live view: open ws://127.0.0.1:{self.live.port} in Foxglove", file=sys.stderr)
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> RecordingHook | None:
+        record, live = getattr(args, "record", None), getattr(args, "live", None)
+        if record is None and live is None:
+            return None
+        return cls(record, live, getattr(args, "record_frames", "jpeg"))
+
+    def __call__(self, runner: Any, link_or_vehicle: Any, resources: Mapping[str, Any] | None = None) -> None:
+        from chaser_bt.log.recorder import attach_recorder
+
+        link = getattr(link_or_vehicle, "link", link_or_vehicle)
+        self.recorder = attach_recorder(
+            runner, link, runner.resources if resources is None else resources, self.record,
+            sinks=[self.live] if self.live is not None else [],
+            frame_format=self.frame_format, frame_period_s=0.0 if self.frame_format == "png" else 0.2,
+        )
+
+    def close(self) -> None:
+        if self.recorder is not None:
+            self.recorder.close()
+        elif self.live is not None:
+            self.live.close()
+
+
+def run_replay(args: argparse.Namespace) -> int:
+    from chaser_bt.log.replay import (LogError, read_log, recorded_associations, recorded_camera_factory,
+                                      recorded_status_changes, replay)
+    from chaser_bt.tree import TreeError, load_tree
+
+    try:
+        log = read_log(args.log)
+        tree = load_tree(args.tree)
+        result = replay(log, tree, correlator=args.correlator, camera_factory=recorded_camera_factory(log))
+    except (LogError, TreeError) as exc:
+        print(f"chaser-bt: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except OSError as exc:
+        print(f"chaser-bt: {exc.filename or args.tree}: {exc.strerror or exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    rec_changes, rec_assoc = recorded_status_changes(log), recorded_associations(log)
+    same_changes = _first_difference(rec_changes, result.status_changes)
+    same_assoc = _first_difference(rec_assoc, result.associations)
+    if args.json:
+        out = result.to_dict()
+        out.update(log=str(args.log), truncated=log.truncated, status_changes_as_recorded=same_changes is None,
+                   associations_as_recorded=same_assoc is None)
+        print(json.dumps(out))
+    else:
+        if log.truncated:
+            print(f"{args.log}: unfinished log (read up to {log.problem})")
+        for c in result.status_changes:
+            print(f"  {c.t:9.2f} s  {c.node}: {c.old} -> {c.new}")
+        print(f"{result.ticks} ticks, root {result.root}, ended: {result.ended}; {result.polls} MAVLink reads, "
+              f"{result.datagrams} radar datagrams, {result.frames} camera frames")
+        print(_compare_line("status changes", len(result.status_changes), same_changes))
+        if result.associations or rec_assoc:
+            ids = sorted({a["associated_id"] for a in result.associations if a["associated_id"] is not None})
+            print(f"radar: {len(result.associations)} pictures, ownship track(s) {ids}")
+            print(_compare_line("associations", len(result.associations), same_assoc))
+    if args.check and (same_changes is not None or same_assoc is not None):
+        return EXIT_FAILED
+    return EXIT_OK
+
+
+def _first_difference(recorded: list, replayed: list) -> int | None:
+    """Index of the first entry where the lists differ (None: identical)."""
+    for i, (a, b) in enumerate(zip(recorded, replayed)):
+        if a != b:
+            return i
+    return None if len(recorded) == len(replayed) else min(len(recorded), len(replayed))
+
+
+def _compare_line(what: str, n: int, diff: int | None) -> str:
+    if diff is None:
+        return f"{what}: {n}, exactly as recorded"
+    return f"{what}: {n}, differ from the recording from entry {diff}"
+
+
+def run_plot(args: argparse.Namespace) -> int:
+    from chaser_bt.log.figures import plot_belief_snapshots, plot_overhead, plot_relative_geometry, save_figure
+    from chaser_bt.log.replay import LogError, flight_trace, read_log
+
+    try:
+        trace = flight_trace(read_log(args.log))
+    except LogError as exc:
+        print(f"chaser-bt: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if len(trace) == 0:
+        print(f"chaser-bt: {args.log}: no ticks recorded: nothing to plot", file=sys.stderr)
+        return EXIT_FAILED
+    out = args.out or args.log.with_name(args.log.stem + "_plots")
+    out.mkdir(parents=True, exist_ok=True)
+    title = f"{trace.meta.get('tree', '')} ({args.log.name})"
+    written = [out / "overhead.png"]
+    save_figure(plot_overhead([trace], title=title), written[-1])
+    if trace.target_source != "none":
+        written.append(out / "relative_geometry.png")
+        save_figure(plot_relative_geometry([trace], title=title), written[-1])
+    if trace.beliefs:
+        written.append(out / "belief.png")
+        save_figure(plot_belief_snapshots(trace, title=title), written[-1])
+    for path in written:
+        print(path)
+    return EXIT_OK
