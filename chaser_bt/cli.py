@@ -15,6 +15,8 @@ import sys
 from pathlib import Path
 from typing import Callable, Sequence
 
+from chaser_bt.log.commands import add_recording_arguments
+
 __all__ = ["main"]
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
@@ -25,6 +27,7 @@ _COMMAND_MODULES = (
     "chaser_bt.radar.commands",
     "chaser_bt.control.commands",
     "chaser_bt.vision.commands",
+    "chaser_bt.log.commands",
 )
 
 log = logging.getLogger("chaser_bt.cli")
@@ -76,6 +79,13 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--rate-hz", type=float, default=10.0, help="tick rate (default 10)")
     p.add_argument("--clock", choices=("vehicle", "wall"), default="vehicle", help="tick on the vehicle's boot time (default; right at any sim speed-up) or on the wall clock")
     p.add_argument("--show-ticks", action="store_true", help="print the tree with statuses whenever a status changes")
+    p.add_argument("--radar", metavar="HOST:PORT", help="receive ground-radar datagrams here (docs/radar.md)")
+    p.add_argument("--radar-pose", type=Path, metavar="FILE.json", help="the radar's pose: `chaser-bt calibrate --json` output")
+    p.add_argument("--radar-time-offset", type=float, default=0.0, metavar="S", help="radar time + S = mission time (default 0)")
+    p.add_argument("--camera", metavar="SOURCE", help="video file, stream URL or device index for the on-board camera")
+    p.add_argument("--camera-size", type=_size, metavar="WxH", help="resize camera frames to this size")
+    p.add_argument("--no-telemetry", action="store_true", help="do not listen for the intruder's own MAVLink position")
+    add_recording_arguments(p)
 
     p = command("rehearse", _rehearse, "fly a tree against the in-process simulator and report")
     p.add_argument("tree", type=Path)
@@ -84,6 +94,14 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--rate-hz", type=float, default=10.0)
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")
     p.add_argument("--show-ticks", action="store_true", help="print the tree with statuses whenever a status changes (to stderr with --json)")
+    p.add_argument("--no-radar", action="store_true", help="no ground radar even if the scenario has one")
+    p.add_argument("--radar-pose", choices=("calibrated", "surveyed"), default="calibrated",
+                   help="how the mission learns the radar's pose: the appendix-A calibration flight (default) or a survey")
+    p.add_argument("--no-camera", action="store_true", help="no rendered camera (trees without vision run faster)")
+    p.add_argument("--camera-size", type=_size, default=(640, 480), metavar="WxH", help="rendered camera size (default 640x480)")
+    p.add_argument("--no-telemetry", action="store_true", help="do not give the mission the intruders' own MAVLink position")
+    p.add_argument("--trace", type=Path, metavar="FILE.npz", help="write the flight's per-tick trace (FlightTrace) here")
+    add_recording_arguments(p)
 
     for module in _COMMAND_MODULES:
         importlib.import_module(module).add_command(sub)
@@ -146,10 +164,12 @@ def _nodes(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     from chaser_bt.mission.clock import FunctionClock, WallClock
+    from chaser_bt.mission.flight_sensors import FlightSensorError
     from chaser_bt.mission.runner import MissionRunner, RunStatus
     from chaser_bt.vehicle import VehicleError, VehicleLink
 
     tree = _load_tree(args.tree)
+    hook = _recording_hook(args)
     try:
         link = VehicleLink.connect(args.connect)
     except ValueError as exc:  # a malformed connection string
@@ -158,13 +178,23 @@ def _run(args: argparse.Namespace) -> int:
         print(f"chaser-bt: {exc}", file=sys.stderr)
         return EXIT_FAILED
     clock = WallClock() if args.clock == "wall" else FunctionClock(lambda: link.state.t_boot_s)
-    runner = MissionRunner(tree, link, clock, rate_hz=args.rate_hz)
+    try:
+        resources = _flight_sensors(args, link, clock)
+    except (FlightSensorError, VehicleError) as exc:
+        link.close()
+        raise _BadInput(str(exc)) from None
+    runner = MissionRunner(tree, link, clock, rate_hz=args.rate_hz, resources=resources)
     if args.show_ticks:
         runner.on_tick(_tick_printer(tree, sys.stdout))
     print(f"flying {tree.name} on {args.connect} (Ctrl-C hands the aircraft back hovering)")
     try:
+        if hook is not None:
+            runner.setup()
+            hook(runner, link, runner.resources)
         result = runner.run()
     finally:
+        if hook is not None:
+            hook.close()
         link.close()
     state = link.state
     print(f"{result.status.value}: {result.message or '-'} after {result.ticks} ticks; vehicle {state.mode}, {'armed' if state.armed else 'disarmed'}")
@@ -176,13 +206,66 @@ def _rehearse(args: argparse.Namespace) -> int:
     scenario = _load_scenario(args.scenario)
     from sitl.rehearsal import rehearse
 
+    from sitl.sensors import SensorOptions
+
     on_tick = _tick_printer(tree, sys.stderr if args.json else sys.stdout) if args.show_ticks else None
-    report = rehearse(tree, scenario, args.seed, rate_hz=args.rate_hz, on_tick=on_tick)
+    sensors = SensorOptions(radar=not args.no_radar, radar_pose=args.radar_pose, camera=not args.no_camera,
+                            camera_size=args.camera_size, telemetry=not args.no_telemetry)
+    hook = _recording_hook(args)
+    try:
+        report = rehearse(tree, scenario, args.seed, rate_hz=args.rate_hz, on_tick=on_tick, sensors=sensors,
+                          on_start=hook, trace=args.trace is not None)
+    finally:
+        if hook is not None:
+            hook.close()
+    if args.trace is not None:
+        report.trace.save(args.trace)
     if args.json:
         print(json.dumps(report.to_dict()))
     else:
         _print_report(report.to_dict())
     return EXIT_OK if report.outcome in ("landed", "completed", "following") else EXIT_FAILED
+
+
+def _flight_sensors(args: argparse.Namespace, link, clock) -> dict:
+    """The resources ``run`` hands the tree: radar, camera and target telemetry as the operator named them."""
+    import time
+
+    from chaser_bt.mission.flight_sensors import FlightSensorOptions, build_flight_sensors
+    from chaser_bt.vehicle import VehicleError
+
+    options = FlightSensorOptions(radar_listen=args.radar, radar_pose_file=args.radar_pose,
+                                  radar_time_offset_s=args.radar_time_offset, camera=args.camera,
+                                  camera_size=args.camera_size, telemetry=not args.no_telemetry)
+    if options.radar_listen is not None:  # the radar's pose is placed in the vehicle's home frame
+        deadline = time.monotonic() + 15.0
+        while link.frame is None and time.monotonic() < deadline:
+            link.poll()
+            time.sleep(0.05)
+        if link.frame is None:
+            raise VehicleError("no HOME_POSITION from the vehicle within 15 s: cannot place the radar")
+    return build_flight_sensors(link, clock, options)
+
+
+def _recording_hook(args: argparse.Namespace):
+    """The ``--record``/``--live`` hook, checked before anything flies (None when neither is asked for)."""
+    from chaser_bt.log.commands import RecordingError, RecordingHook
+
+    try:
+        return RecordingHook.from_args(args)
+    except RecordingError as exc:
+        raise _BadInput(str(exc)) from None
+
+
+def _size(text: str) -> tuple[int, int]:
+    """``WxH`` -> (W, H), for argparse."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT such as 640x480, got {text!r}") from None
+    if w < 16 or h < 16:
+        raise argparse.ArgumentTypeError(f"camera size {text} is too small (at least 16x16)")
+    return w, h
 
 
 def _tick_printer(tree, stream):

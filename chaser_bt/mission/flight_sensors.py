@@ -1,0 +1,111 @@
+"""The mission's sensors on a real flight: the ground radar over UDP, a camera through OpenCV, the
+target's telemetry on the vehicle link — the same resources a rehearsal hands the tree, built from
+what the operator names on ``chaser-bt run`` instead of from a simulator.
+
+The radar's pose comes from a calibration (``chaser-bt calibrate --json`` writes it, appendix A);
+its scan times plus ``time_offset_s`` are mission time (docs/radar.md).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from chaser_bt.geo import GeoPoint
+from chaser_bt.radar.feed import RadarFeed
+from chaser_bt.radar.geometry import RadarPose
+from chaser_bt.radar.stream import UdpDatagramSource
+from chaser_bt.target_telemetry import TargetTelemetry
+
+__all__ = ["FlightSensorOptions", "FlightSensorError", "load_radar_pose", "build_flight_sensors"]
+
+_POSE_FIELDS = ("lat_deg", "lon_deg", "alt_m", "yaw_deg", "pitch_deg", "roll_deg")
+
+
+class FlightSensorError(ValueError):
+    """A sensor cannot be set up as asked (bad pose file, camera that does not open): bad input."""
+
+
+@dataclass(frozen=True)
+class FlightSensorOptions:
+    """What the operator connected. ``radar_listen`` is ``HOST:PORT`` to receive radar datagrams on;
+    ``camera`` a video file, stream URL or device index (as ``cv2.VideoCapture`` takes it)."""
+
+    radar_listen: str | None = None
+    radar_pose_file: Path | None = None
+    radar_time_offset_s: float = 0.0
+    camera: str | None = None
+    camera_size: tuple[int, int] | None = None
+    telemetry: bool = True
+
+
+def load_radar_pose(path: Path) -> tuple[GeoPoint, tuple[float, float, float]]:
+    """The radar's geodetic position and (yaw, pitch, roll) in radians from a ``calibrate --json`` file."""
+    try:
+        data = json.loads(Path(path).read_text())
+    except OSError as exc:
+        raise FlightSensorError(f"{path}: {exc.strerror or exc}") from None
+    except json.JSONDecodeError as exc:
+        raise FlightSensorError(f"{path}:{exc.lineno}: not JSON ({exc.msg})") from None
+    if not isinstance(data, dict):
+        raise FlightSensorError(f"{path}: expected a JSON object with {', '.join(_POSE_FIELDS)}")
+    values = {}
+    for name in _POSE_FIELDS:
+        v = data.get(name, 0.0 if name in ("alt_m", "pitch_deg", "roll_deg") else None)
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+            raise FlightSensorError(f"{path}: field {name!r}: expected a finite number, got {v!r}")
+        values[name] = float(v)
+    point = GeoPoint(values["lat_deg"], values["lon_deg"], values["alt_m"])
+    return point, tuple(math.radians(values[k]) for k in ("yaw_deg", "pitch_deg", "roll_deg"))
+
+
+def _host_port(text: str) -> tuple[str, int]:
+    host, sep, port = text.rpartition(":")
+    if not sep or not port.isdigit() or not 0 <= int(port) <= 65535:
+        raise FlightSensorError(f"--radar {text!r}: expected HOST:PORT such as 0.0.0.0:4950")
+    return host or "0.0.0.0", int(port)
+
+
+def build_flight_sensors(link: Any, clock: Any, options: FlightSensorOptions) -> dict[str, Any]:
+    """Resources for :class:`~chaser_bt.mission.runner.MissionRunner` from ``options``.
+
+    ``link`` must already know its ENU frame (the vehicle's home) when a radar is asked for: the
+    radar's pose is placed in that frame.
+    """
+    resources: dict[str, Any] = {}
+    if options.radar_listen is not None:
+        if options.radar_pose_file is None:
+            raise FlightSensorError("--radar needs --radar-pose FILE (the output of `chaser-bt calibrate --json`)")
+        if link.frame is None:
+            raise FlightSensorError("the vehicle has not reported its home position; the radar pose cannot be placed")
+        point, (yaw, pitch, roll) = load_radar_pose(options.radar_pose_file)
+        pose = RadarPose.from_geodetic(link.frame, point, yaw, pitch, roll)
+        host, port = _host_port(options.radar_listen)
+        resources["radar"] = RadarFeed(UdpDatagramSource(host, port), pose, time_offset_s=options.radar_time_offset_s)
+    if options.camera is not None:
+        resources["camera"] = _camera(options)
+    if options.telemetry:
+        resources["target_telemetry"] = TargetTelemetry.attach(link, clock.now)
+    return resources
+
+
+def _camera(options: FlightSensorOptions) -> Any:
+    from chaser_bt.vision.camera import CameraModel
+    from chaser_bt.vision.detector.inference import Detector
+    from chaser_bt.vision.frame_source import VideoCaptureSource
+    from chaser_bt.vision.pipeline import CameraSensor, VisionPipeline
+
+    target: str | int = int(options.camera) if options.camera.isdigit() else options.camera
+    try:
+        source = VideoCaptureSource(target, options.camera_size)
+    except ValueError as exc:
+        raise FlightSensorError(f"--camera: {exc}") from None
+    if options.camera_size is not None:
+        w, h = options.camera_size
+    else:
+        w = int(source.capture.get(3)) or 1920  # CAP_PROP_FRAME_WIDTH / HEIGHT
+        h = int(source.capture.get(4)) or 1080
+    return CameraSensor(source, VisionPipeline(CameraModel(width_px=w, height_px=h), Detector(threads=1)))
