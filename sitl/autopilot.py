@@ -30,7 +30,7 @@ from sitl.modes import (
 )
 from sitl.params import ParamStore
 from sitl.physics import PHYSICS_DT, MulticopterPhysics, NormalStream, Wind
-from sitl.scenario import Scenario
+from sitl.scenario import GCS_MODES, Scenario
 
 __all__ = [
     "CommandResult", "Estimate", "GpsReading", "BatteryReading", "TruthState", "Autopilot",
@@ -158,6 +158,9 @@ class Autopilot:
         self._ovr_t = [0.0] * 18
         # failsafes, detectors, timers
         self._gcs_last: float | None = None
+        # scripted people: the safety pilot's switch, the operator's ground-station mode changes
+        self._pilot = scenario.pilot
+        self._gcs_events = list(scenario.ground_station)
         self.fs_gcs = False
         self.fs_battery = False
         self.fs_ekf = False
@@ -184,6 +187,7 @@ class Autopilot:
     def _tick(self, h: float) -> None:
         self.time_s += h
         self._update_sensors(h)
+        self._ground_station()
         self._failsafes()
         ph = self.phys
         self._idle = False
@@ -294,7 +298,20 @@ class Autopilot:
             timeout = self.p["RC_OVERRIDE_TIME"]
             if timeout < 0.0 or self.time_s - self._ovr_t[i] < timeout:
                 return v
+        if self._pilot is not None:
+            if ch == self._pilot.gate_channel:
+                return self._pilot.gate_pwm(self.time_s)
+            if ch == 3:
+                return 1500  # a pilot standing by holds the throttle stick centred (hold altitude)
         return _RC_NEUTRAL[i]
+
+    def _ground_station(self) -> None:
+        """The operator's scripted mode changes, as a second ground station's SET_MODE would arrive."""
+        while self._gcs_events and self._gcs_events[0].at_s <= self.time_s:
+            ev = self._gcs_events.pop(0)
+            result = self.request_mode(GCS_MODES[ev.mode])
+            if not result.accepted:
+                self._text(_SEV_WARNING, f"ground station: {ev.mode} refused ({result.text})")
 
     # ------------------------------------------------------------------ detectors, failsafes
     def _land_detector(self, h: float) -> None:

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 
 from chaser_bt.geo import GeoPoint
@@ -24,11 +25,19 @@ from sitl.params import ParamStore
 from sitl.physics import WindParams
 from sitl.radar.config import RadarClutter, RadarConfig, RadarFailureRates
 from sitl.intruders import TRAJECTORY_KINDS, IntruderLimits, IntruderSpec
-from sitl.targets import CirclePath, TargetPath, WaypointPath
+from sitl.camera.models import TARGET_MODELS
+from sitl.targets import CirclePath, StaticPoint, TargetPath, WaypointPath
 
-__all__ = ["ScenarioError", "BootParams", "Fault", "FAULT_KINDS", "Scenario", "ScriptedTarget", "load_scenario"]
+__all__ = ["ScenarioError", "BootParams", "Fault", "FAULT_KINDS", "GCS_MODES", "GroundStationEvent", "PilotEvent",
+           "PilotScript", "RADAR_BLIND_KINDS", "Scenario", "ScriptedTarget", "load_scenario"]
 
 FAULT_KINDS = ("link_loss", "gps_loss", "battery_drop")
+
+#: Target kinds the ground radar does not see: it tracks moving drones, not people on the ground.
+RADAR_BLIND_KINDS = ("person",)
+
+#: Modes a scripted ground station can command (the simulated ArduCopter's, by mode number).
+GCS_MODES = {"STABILIZE": 0, "ALT_HOLD": 2, "GUIDED": 4, "LOITER": 5, "RTL": 6, "LAND": 9, "BRAKE": 17}
 
 # 2026-01-01T00:00:00Z: a fixed boot epoch so SYSTEM_TIME, and with it every run, reproduces.
 DEFAULT_START_UNIX_S = 1767225600.0
@@ -75,15 +84,71 @@ class Fault:
 
 @dataclass(frozen=True)
 class ScriptedTarget:
-    """A target flying a scripted path, present from ``start_s`` until ``end_s`` (None: to the end)."""
+    """A target flying a scripted path, present from ``start_s`` until ``end_s`` (None: to the end).
+
+    ``kind`` is what the camera draws (a :data:`sitl.camera.models.TARGET_MODELS` key); the radar
+    does not see :data:`RADAR_BLIND_KINDS`.
+    """
 
     name: str
     path: TargetPath
     start_s: float = 0.0
     end_s: float | None = None
+    kind: str = "s1000"
 
     def present(self, t: float) -> bool:
         return t >= self.start_s and (self.end_s is None or t < self.end_s)
+
+    @property
+    def radar_visible(self) -> bool:
+        """Whether the ground radar sees this target (drones yes, people no)."""
+        return self.kind not in RADAR_BLIND_KINDS
+
+
+@dataclass(frozen=True)
+class PilotEvent:
+    """The pilot moves the autonomy switch at sim time ``at_s``: ``gate`` True = on (high)."""
+
+    at_s: float
+    gate: bool
+
+
+@dataclass(frozen=True)
+class PilotScript:
+    """The safety pilot's transmitter: an autonomy switch on ``gate_channel``, scripted over time.
+
+    The switch reads ``on_pwm`` when on and ``off_pwm`` when off (ArduPilot counts a switch above
+    1800 as high and below 1200 as low); it starts at ``gate`` and follows ``events`` in time order.
+    The pilot stands by with every stick centred, the throttle too (so a mode that reads the
+    sticks, such as LOITER after a hand-back, holds altitude); other channels read 1500.
+    """
+
+    gate_channel: int = 7
+    gate: bool = True
+    on_pwm: int = 1900
+    off_pwm: int = 1100
+    events: tuple[PilotEvent, ...] = ()
+
+    def gate_at(self, t: float) -> bool:
+        """The switch position at sim time ``t``."""
+        on = self.gate
+        for ev in self.events:
+            if ev.at_s > t:
+                break
+            on = ev.gate
+        return on
+
+    def gate_pwm(self, t: float) -> int:
+        """The switch channel's PWM at sim time ``t``."""
+        return self.on_pwm if self.gate_at(t) else self.off_pwm
+
+
+@dataclass(frozen=True)
+class GroundStationEvent:
+    """Another ground station (the operator's) sets flight ``mode`` at sim time ``at_s``."""
+
+    at_s: float
+    mode: str
 
 
 @dataclass(frozen=True)
@@ -103,10 +168,24 @@ class Scenario:
     radar: RadarConfig | None = None
     targets: tuple[ScriptedTarget, ...] = ()
     intruders: tuple[IntruderSpec, ...] = ()
+    pilot: PilotScript | None = None
+    ground_station: tuple[GroundStationEvent, ...] = ()
 
     def fault_active(self, kind: str, t: float) -> bool:
         """Whether any fault of ``kind`` is in force at sim time ``t``."""
         return any(f.kind == kind and f.active(t) for f in self.faults)
+
+    def placed(self, seed: int) -> Scenario:
+        """This scenario with every scattered static target put at its point for ``seed``.
+
+        Each target draws from its own stream (seed, index), so one run's placement does not depend
+        on the other targets; a scenario without scatter is returned unchanged.
+        """
+        targets = tuple(
+            dataclasses.replace(tgt, path=tgt.path.placed(np.random.default_rng([seed, 0x9e2, k])))
+            if isinstance(tgt.path, StaticPoint) and tgt.path.scatter_m > 0 else tgt
+            for k, tgt in enumerate(self.targets))
+        return self if targets == self.targets else dataclasses.replace(self, targets=targets)
 
     @classmethod
     def from_dict(cls, d: Any, source: str = "<dict>") -> Scenario:
@@ -167,7 +246,7 @@ class _Parser:
     def scenario(self, d: Any) -> Scenario:
         top = self.mapping(d, "", ("name", "home", "wind", "airframe", "params", "boot",
                                    "faults", "time_limit_s", "start_unix_s", "radar", "targets",
-                                   "intruders"))
+                                   "intruders", "pilot", "ground_station"))
         if d is None:
             raise self.fail("", "a scenario mapping (the document is empty)")
         name = top.get("name", "unnamed")
@@ -187,6 +266,8 @@ class _Parser:
             start_unix_s=self.number(top, "start_unix_s", "", DEFAULT_START_UNIX_S, minimum=0.0),
             radar=self.radar(top.get("radar")),
             targets=(targets := self.targets(top.get("targets"))),
+            pilot=self.pilot(top.get("pilot")),
+            ground_station=self.ground_station(top.get("ground_station")),
             intruders=self.intruders(top.get("intruders"), {t.name for t in targets},
                                      int(self.params(top.get("params")).get("SYSID_THISMAV", 1))),
         )
@@ -357,19 +438,35 @@ class _Parser:
         out, names = [], set()
         for i, item in enumerate(d):
             path = f"targets[{i}]"
-            m = self.mapping(item, path, ("name", "circle", "waypoints", "start_s", "end_s"))
+            m = self.mapping(item, path, ("name", "kind") + self._SHAPES + ("start_s", "end_s"))
             name = m.get("name")
             if not isinstance(name, str) or not name or name == "ownship" or name in names:
                 raise self.fail(f"{path}.name", "a unique non-empty name other than 'ownship'", name)
             names.add(name)
-            if ("circle" in m) == ("waypoints" in m):
-                raise self.fail(path, "exactly one of the keys circle, waypoints")
+            shapes = [k for k in self._SHAPES if k in m]
+            if len(shapes) != 1:
+                raise self.fail(path, "exactly one of the keys " + ", ".join(self._SHAPES))
+            kind = m.get("kind", "s1000")
+            if kind not in TARGET_MODELS:
+                raise self.fail(f"{path}.kind", "one of " + ", ".join(sorted(TARGET_MODELS)), kind)
             start = self.number(m, "start_s", path, 0.0, 0.0)
             end = None if m.get("end_s") is None else self.number(m, "end_s", path, None, start)
-            shape = self._circle(m["circle"], f"{path}.circle") if "circle" in m else self._waypoints(
-                m["waypoints"], f"{path}.waypoints")
-            out.append(ScriptedTarget(name, shape, start, end))
+            shape = getattr(self, f"_{shapes[0]}")(m[shapes[0]], f"{path}.{shapes[0]}")
+            out.append(ScriptedTarget(name, shape, start, end, kind))
         return tuple(out)
+
+    _SHAPES = ("circle", "waypoints", "static")
+
+    def _static(self, d: Any, path: str) -> StaticPoint:
+        m = self.mapping(d, path, ("position_enu_m", "scatter_m", "heading_deg", "lying"))
+        if "position_enu_m" not in m:
+            raise self.fail(f"{path}.position_enu_m", "a list of 3 numbers (required key is missing)")
+        lying = m.get("lying", False)
+        if not isinstance(lying, bool):
+            raise self.fail(f"{path}.lying", "true or false", lying)
+        return StaticPoint(self._vector(m["position_enu_m"], f"{path}.position_enu_m"),
+                           self.number(m, "scatter_m", path, 0.0, 0.0),
+                           math.radians(self.number(m, "heading_deg", path, 0.0)), lying)
 
     def _vector(self, v: Any, path: str) -> tuple[float, float, float]:
         if (not isinstance(v, list) or len(v) != 3
@@ -399,6 +496,64 @@ class _Parser:
             raise self.fail(f"{path}.loop", "true or false", loop)
         points = tuple(self._vector(v, f"{path}.points_enu_m[{k}]") for k, v in enumerate(pts))
         return WaypointPath(points, self._positive(m, "speed_mps", path, 5.0), loop)
+
+    # -- the safety pilot's switch and the operator's ground station (sitl/scenarios/README.md) ----
+
+    def pilot(self, d: Any) -> PilotScript | None:
+        if d is None:
+            return None
+        m = self.mapping(d, "pilot", ("gate_channel", "gate", "on_pwm", "off_pwm", "events"))
+        dflt = PilotScript()
+        ints = {}
+        for key, lo, hi in (("gate_channel", 5, 16), ("on_pwm", 800, 2200), ("off_pwm", 800, 2200)):
+            v = m.get(key, getattr(dflt, key))
+            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+                raise self.fail(f"pilot.{key}", f"an integer {lo}..{hi}", v)
+            ints[key] = v
+        if not ints["on_pwm"] > 1800 or not ints["off_pwm"] < 1200:
+            raise self.fail("pilot.on_pwm/off_pwm", "on_pwm > 1800 and off_pwm < 1200 (ArduPilot's switch positions)",
+                            (ints["on_pwm"], ints["off_pwm"]))
+        events = m.get("events", [])
+        if not isinstance(events, list):
+            raise self.fail("pilot.events", "a list of {at_s, gate} events", events)
+        out, last = [], -math.inf
+        for i, item in enumerate(events):
+            path = f"pilot.events[{i}]"
+            e = self.mapping(item, path, ("at_s", "gate"))
+            if not isinstance(item, Mapping):
+                raise self.fail(path, "a mapping", item)
+            at = self.number(e, "at_s", path, None, minimum=0.0)
+            if at < last:
+                raise self.fail(f"{path}.at_s", f"a time >= the previous event's ({last})", at)
+            last = at
+            out.append(PilotEvent(at, self._switch(e.get("gate"), f"{path}.gate")))
+        return PilotScript(ints["gate_channel"], self._switch(m.get("gate", "on"), "pilot.gate"), ints["on_pwm"],
+                           ints["off_pwm"], tuple(out))
+
+    def _switch(self, v: Any, path: str) -> bool:
+        # YAML 1.1 reads a bare on/off as a boolean; accept both spellings.
+        if isinstance(v, bool):
+            return v
+        if v in ("on", "off"):
+            return v == "on"
+        raise self.fail(path, "on or off", v)
+
+    def ground_station(self, d: Any) -> tuple[GroundStationEvent, ...]:
+        if d is None:
+            return ()
+        if not isinstance(d, list):
+            raise self.fail("ground_station", "a list of {at_s, mode} events", d)
+        out = []
+        for i, item in enumerate(d):
+            path = f"ground_station[{i}]"
+            e = self.mapping(item, path, ("at_s", "mode"))
+            if not isinstance(item, Mapping):
+                raise self.fail(path, "a mapping", item)
+            mode = e.get("mode")
+            if mode not in GCS_MODES:
+                raise self.fail(f"{path}.mode", "one of " + ", ".join(GCS_MODES), mode)
+            out.append(GroundStationEvent(self.number(e, "at_s", path, None, minimum=0.0), mode))
+        return tuple(sorted(out, key=lambda ev: ev.at_s))
 
     # -- intruders: Phantom-like drones with their own MAVLink (sitl/intruders.py) ----------------
 

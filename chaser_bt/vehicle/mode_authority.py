@@ -1,0 +1,139 @@
+"""Who put the vehicle in its mode: the mission, or someone else (a ground station, the pilot, a failsafe).
+
+The paper's ground station "can overwrite all commands if desired" (section 2.2): when the
+operator, the pilot's mode switch or one of ArduCopter's own failsafes changes the flight mode,
+the mission must notice and stop commanding rather than switch back. :class:`ModeAuthority`
+watches a :class:`~chaser_bt.vehicle.VehicleLink` from both sides:
+
+- every mode request the mission sends (COMMAND_LONG DO_SET_MODE, NAV_RETURN_TO_LAUNCH,
+  NAV_LAND, or a SET_MODE message) is remembered as *pending*;
+- every change of HEARTBEAT.custom_mode from the vehicle is matched against the pending requests:
+  a requested mode is the mission's own, anything else is *foreign* and is logged with the time
+  and the STATUSTEXT that came with it (ArduCopter names its failsafes: "GCS Failsafe", ...).
+
+A request that the vehicle has not honoured within :data:`PENDING_HEARTBEATS` heartbeats is
+forgotten (a refused request must not excuse a later operator's switch to the same mode); the
+count is in heartbeats, not seconds, so a request sent into a dead link is still pending when the
+link returns and the vehicle shows the mode (ArduCopter's link-loss RTL, which the mission asked
+for too).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from chaser_bt.vehicle.connection import mavutil
+from chaser_bt.vehicle.state import mode_name
+
+__all__ = ["ForeignModeChange", "ModeAuthority", "PENDING_HEARTBEATS"]
+
+log = logging.getLogger(__name__)
+mavlink = mavutil.mavlink
+
+#: Heartbeats (about seconds, at ArduCopter's 1 Hz) a mode request stays pending.
+PENDING_HEARTBEATS = 5
+_MODE_OF_COMMAND = {mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH: "RTL", mavlink.MAV_CMD_NAV_LAND: "LAND"}
+
+
+@dataclass(frozen=True)
+class ForeignModeChange:
+    """A mode change the mission did not ask for, at mission time ``t``; ``armed`` as the heartbeat
+    said; ``why`` is the vehicle's last STATUSTEXT before it (empty when it said nothing)."""
+
+    t: float
+    previous: str
+    mode: str
+    armed: bool
+    why: str = ""
+
+
+class ModeAuthority:
+    """Classify the vehicle's mode changes as the mission's own or foreign (see the module docstring).
+
+    Args:
+        clock: mission time now, stamped on each change.
+        vehicle_sysid: the vehicle's system id (None until known): only its heartbeats count.
+    """
+
+    def __init__(self, clock: Callable[[], float], vehicle_sysid: Callable[[], int | None]) -> None:
+        self._clock = clock
+        self._vehicle_sysid = vehicle_sysid
+        self._pending: dict[str, int] = {}  # requested mode -> heartbeats seen since
+        self._mode = ""
+        self._last_text = ""
+        self.foreign: list[ForeignModeChange] = []
+        self.own_changes = 0
+
+    @classmethod
+    def attach(cls, link: Any, clock: Callable[[], float]) -> ModeAuthority:
+        """An authority listening on ``link`` (a VehicleLink) to what it sends and receives."""
+        authority = cls(clock, lambda: link.target_sysid)
+        link.add_listener(on_receive=authority.on_receive, on_send=authority.on_send)
+        return authority
+
+    @property
+    def mode(self) -> str:
+        """The vehicle's mode as last heard ("" before the first heartbeat)."""
+        return self._mode
+
+    def foreign_since(self, t: float, *, armed_only: bool = False) -> ForeignModeChange | None:
+        """The latest foreign change after mission time ``t`` (with ``armed_only``, made while armed), if any."""
+        for change in reversed(self.foreign):
+            if change.t <= t:
+                break
+            if change.armed or not armed_only:
+                return change
+        return None
+
+    def on_send(self, msg: Any) -> None:
+        """A message the mission sent (link listener: never raises)."""
+        try:
+            mtype = msg.get_type()
+            mode = None
+            if mtype == "COMMAND_LONG":
+                if msg.command == mavlink.MAV_CMD_DO_SET_MODE:
+                    mode = mode_name(int(msg.param2))
+                else:
+                    mode = _MODE_OF_COMMAND.get(msg.command)
+            elif mtype == "SET_MODE":
+                mode = mode_name(int(msg.custom_mode))
+            if mode is not None:
+                self._pending[mode] = 0
+        except Exception:  # a listener must not raise into the link
+            log.debug("could not read a sent message", exc_info=True)
+
+    def on_receive(self, msg: Any) -> None:
+        """A message from the link (link listener: never raises)."""
+        try:
+            mtype = msg.get_type()
+            if mtype not in ("HEARTBEAT", "STATUSTEXT") or msg.get_srcSystem() != self._vehicle_sysid():
+                return
+            if mtype == "STATUSTEXT":
+                self._last_text = msg.text if isinstance(msg.text, str) else bytes(msg.text).decode(errors="replace")
+                self._last_text = self._last_text.rstrip("\x00")
+                return
+            if msg.autopilot == mavlink.MAV_AUTOPILOT_INVALID:
+                return  # another component's heartbeat (a gimbal, a companion)
+            self._on_heartbeat(mode_name(int(msg.custom_mode)), bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED))
+        except Exception:
+            log.debug("could not read a received message", exc_info=True)
+
+    def _on_heartbeat(self, mode: str, armed: bool) -> None:
+        previous, self._mode = self._mode, mode
+        if previous and mode != previous:
+            if mode in self._pending:
+                self.own_changes += 1
+            else:
+                change = ForeignModeChange(float(self._clock()), previous, mode, armed, self._last_text)
+                self.foreign.append(change)
+                log.warning("mode %s -> %s not commanded by the mission (%s)", previous, mode, change.why or "no reason given")
+            self._pending.pop(mode, None)
+            self._last_text = ""
+        elif mode in self._pending:
+            self._pending.pop(mode)  # already there: the request is answered
+        for requested in list(self._pending):
+            self._pending[requested] += 1
+            if self._pending[requested] > PENDING_HEARTBEATS:
+                del self._pending[requested]
