@@ -11,8 +11,8 @@ FAILURE (and hover) without a cue, outside GUIDED, or when the belief cannot be 
 from __future__ import annotations
 
 import abc
-
 import math
+from typing import Any
 
 import numpy as np
 import py_trees
@@ -20,7 +20,7 @@ import py_trees
 from behaviours.base import CommandingBehaviour, state_port
 from chaser_bt.cue import TargetCue
 from chaser_bt.search import (BeliefError, BeliefGrid, GaussianDynamics, GridSpec, MaxBeliefPlanner,
-                              RecedingHorizonPlanner, SearchSession, SearchSnapshot, SensorModel)
+                              RecedingHorizonPlanner, SearchSession, SearchSnapshot, SensorModel, warm_up_planner)
 from chaser_bt.tree import input_port, output_port, register_behaviour
 from chaser_bt.vision import CameraModel
 
@@ -97,6 +97,10 @@ class RHCSearch(_BeliefSearch):
         "threshold": input_port(float, "Minimum path gain; below it go to the belief maximum", default=0.001),
         "node_budget": input_port(int, "0: exact; N > 0: stop after N search nodes (approximate, anytime)", default=0),
     }
+
+    def setup(self, **kwargs: Any) -> None:
+        super().setup(**kwargs)
+        warm_up_planner()  # the compiled planner is loaded before the flight, not at the first search tick
 
     def make_planner(self, sensor: SensorModel) -> RecedingHorizonPlanner:
         budget = self.get_input("node_budget")

@@ -22,9 +22,11 @@ of the local window and heading in which a move gains its look on the unlowered 
 ``p_detect^2`` times the belief that the previous look also saw. A cell seen by the previous
 look was lowered by at least (1 - p_detect), and looks further back only lower it more, so every
 true continuation gains at most V: the bound is admissible and the search returns a brute-force
-optimum. Children are expanded best bound first so a near-optimal path is found at once; a node's
-26 children are scored in one vectorised gather that shares the parent's lowered belief (shared
-prefixes). ``node_budget`` turns this into a labelled approximate, anytime planner.
+optimum. Children are expanded best bound first so a near-optimal path is found at once; the
+path's looks lower the belief in place on the way down and are undone exactly (saved values) on
+the way back, so every prefix is scored once and shared by its subtree. The window sums, the bound's
+dynamic programme and the search are compiled (:mod:`chaser_bt.search.rhc_kernel`, numba); this
+module prepares their inputs. ``node_budget`` turns this into a labelled approximate, anytime planner.
 """
 
 from __future__ import annotations
@@ -33,12 +35,13 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.fft import irfftn, next_fast_len, rfftn
 
 from chaser_bt.search.belief import BeliefError, GridSpec
+from chaser_bt.search.rhc_kernel import branch_and_bound, remaining_bounds, window_sums
 from chaser_bt.search.sensor import SensorModel
+from chaser_bt.vision.camera import CameraModel
 
-__all__ = ["MOVES", "PlanResult", "RecedingHorizonPlanner", "move_headings"]
+__all__ = ["MOVES", "PlanResult", "RecedingHorizonPlanner", "move_headings", "warm_up_planner"]
 
 #: The 26 moves to adjacent cells, in a fixed (lexicographic) order.
 MOVES = np.array([(dx, dy, dz) for dx in (-1, 0, 1) for dy in (-1, 0, 1) for dz in (-1, 0, 1) if (dx, dy, dz) != (0, 0, 0)])
@@ -103,9 +106,13 @@ class RecedingHorizonPlanner:
         self._stencils = [sensor.stencil(y) for y in HEADINGS]
         self._reach = sensor.reach_cells
         self._local_shape = (2 * self.horizon + 1 + 2 * self._reach,) * 3
-        self._fft_shape = tuple(next_fast_len(n, real=True) for n in self._local_shape)
-        fixed = [_overlap_spectra(self._stencils, y, self._fft_shape) for y in range(len(HEADINGS))]
-        self._fixed_spectra = np.stack(fixed)  # (8, 26, *rfft shape)
+        # For each (previous heading, move): which offsets of the new look the previous look saw
+        # too (the overlap sets of the bound), grouped by the new look's heading.
+        self._members = np.stack([_membership(st, self._reach) for st in self._stencils])
+        width = max(len(st) for st in self._stencils)
+        fixed = [_overlap_indices(self._stencils, self._members, y, self._reach, width) for y in range(len(HEADINGS))]
+        self._ov_idx = np.stack([i for i, _ in fixed])
+        self._ov_len = np.stack([n for _, n in fixed])
 
     @property
     def spec(self) -> GridSpec:
@@ -141,12 +148,12 @@ class RecedingHorizonPlanner:
         if np.all(src_hi > src_lo):
             local[tuple(slice(s - l, e - l) for s, e, l in zip(src_lo, src_hi, lo))] = b[tuple(slice(s, e) for s, e in zip(src_lo, src_hi))]
         strides = np.array([shape[1] * shape[2], shape[2], 1])
-        sentinel = local.size  # an always-zero cell that pads short footprints
-        m = max(len(s) for s in stencils)
-        offsets = np.full((len(stencils), max(m, 1)), sentinel, dtype=np.int64)
-        for i, s in enumerate(stencils):
-            offsets[i, : len(s)] = s @ strides
-        flat = np.append(local.reshape(-1), 0.0)
+        m = max(len(st) for st in stencils)
+        offs = np.zeros((len(stencils), max(m, 1)), dtype=np.int64)
+        lens = np.array([len(st) for st in stencils], dtype=np.int64)
+        for i, st in enumerate(stencils):
+            offs[i, : len(st)] = st @ strides
+        flat = local.reshape(-1)
 
         # Window cells u in [0, win)^3 <-> grid cell c0 + u - h.
         uu = np.stack(np.meshgrid(*(np.arange(win),) * 3, indexing="ij"), axis=-1)
@@ -155,121 +162,59 @@ class RecedingHorizonPlanner:
         if blocked is not None:
             blk = np.asarray(blocked, dtype=bool)
             valid[valid] = ~blk[tuple(cells[valid].T)]
-        base = (uu + reach) @ strides  # flat index in `local` of each window cell
-        pos_base = np.where(offsets == sentinel, 0, 1)  # sentinel entries must not move with the cell
-        g0 = np.empty((win, win, win, len(stencils)))
-        for y in range(len(stencils)):
-            idx = base[..., None] * pos_base[y] + offsets[y]
-            g0[..., y] = pd * flat[idx].sum(axis=-1)
+        base = ((uu + reach) @ strides).reshape(-1)  # flat index in `local` of each window cell
+        valid = valid.reshape(-1)
         if h > 1:
-            spectra = np.concatenate([self._fixed_spectra, _overlap_spectra(stencils, _START, self._fft_shape)[None]])
-            overlap = _window_overlaps(local, spectra, reach, win, self._fft_shape)
-            bounds = self._remaining_bounds(g0, overlap, valid, pd)
+            members = np.concatenate([self._members, _membership(stencils[_START], self._reach)[None]])
+            start_idx, start_len = _overlap_indices(stencils, members, _START, self._reach, offs.shape[1])
+            ov_idx = np.zeros((len(stencils), len(MOVES), offs.shape[1]), dtype=np.int64)
+            ov_idx[: len(HEADINGS), :, : self._ov_idx.shape[2]] = self._ov_idx
+            ov_idx[_START] = start_idx
+            ov_len = np.concatenate([self._ov_len, start_len[None]])
+            g0, overlap = window_sums(flat, base, offs, lens, ov_idx, ov_len, MOVE_HEADING, pd)
+            bounds = remaining_bounds(g0, overlap, valid, MOVES, MOVE_HEADING, win, h, self.gamma, pd)
         else:
-            bounds = [np.zeros_like(g0)]
-
-        search = _Search(self, flat, offsets, pos_base, base, valid, bounds, pd)
-        search.expand(0, np.array([h, h, h]), _START, 0.0, flat, [np.array([h, h, h])])
-        if search.best_path is None:
+            bounds = np.zeros((1, len(stencils), base.size))
+        gain, best, n_best, nodes, cut = branch_and_bound(
+            flat, offs, lens, base, valid, bounds, MOVES, MOVE_HEADING, win, h, _START, self.gamma, pd,
+            self.threshold, 0 if self.node_budget is None else self.node_budget)
+        if n_best == 0:
             target = spec.center_of(np.unravel_index(int(np.argmax(b)), spec.shape))
-            return PlanResult(np.array([c0]), 0.0, target, None, True, search.nodes, not search.cut)
-        path = np.array(search.best_path) - h + c0
+            return PlanResult(np.array([c0]), 0.0, target, None, True, int(nodes), not cut)
+        path = best[:n_best] - h + c0
         step = path[1] - path[0]
         yaw = float(math.atan2(step[1], step[0])) if np.any(step[:2]) else float(yaw_enu_rad)
-        return PlanResult(path, search.best_gain, spec.center_of(path[1]), yaw, False, search.nodes, not search.cut)
-
-    def _remaining_bounds(self, g0: np.ndarray, overlap: np.ndarray, valid: np.ndarray, pd: float) -> list[np.ndarray]:
-        """V_k(u, heading) for k = 0..h-1: an upper bound on the discounted gain of k more moves.
-
-        A move from heading y to cell v (heading y') gains at most G0(v, y') = pd * (belief it sees) minus
-        pd^2 * (belief in the cells that the previous look, from u with heading y, also saw):
-        those cells were already lowered by at least (1 - pd). Looks further back only lower the
-        belief more, so the bound holds for every path (module docstring).
-        """
-        win, n_head = g0.shape[0], g0.shape[-1]
-        out = [np.zeros_like(g0)]
-        pad = np.full((n_head, win + 2, win + 2, win + 2), -np.inf)
-        for _ in range(1, self.horizon):
-            prev = out[-1]
-            best = np.zeros_like(g0)  # no valid move: nothing more to gain
-            for m, (d, head) in enumerate(zip(MOVES, MOVE_HEADING)):
-                heads = np.arange(n_head) if head < 0 else np.full(n_head, head)
-                # value[y, v] of arriving at v with this move from a state of heading y
-                step = np.moveaxis(g0[..., heads], -1, 0) - pd * pd * overlap[:, m]
-                value = self.gamma * (step + np.moveaxis(prev[..., heads], -1, 0))
-                pad[:, 1:-1, 1:-1, 1:-1] = np.where(valid[None], value, -np.inf)
-                sl = pad[:, 1 + d[0] : 1 + d[0] + win, 1 + d[1] : 1 + d[1] + win, 1 + d[2] : 1 + d[2] + win]
-                best = np.maximum(best, np.moveaxis(sl, 0, -1))
-            out.append(best)
-        return out
+        return PlanResult(path, float(gain), spec.center_of(path[1]), yaw, False, int(nodes), not cut)
 
 
-def _overlap_spectra(stencils: list[np.ndarray], prev: int, shape: tuple[int, int, int]) -> np.ndarray:
-    """For each move from heading ``prev``: the spectrum of the offsets (from the new cell) that both looks see."""
-    seen_before = {tuple(o) for o in stencils[prev]}
-    masks = np.zeros((len(MOVES),) + shape)
-    for m, (d, head) in enumerate(zip(MOVES, MOVE_HEADING)):
-        for s in stencils[prev if head < 0 else head]:
-            if tuple(s + d) in seen_before:
-                masks[(m,) + tuple(np.mod(s, shape))] = 1.0
-    return np.conj(rfftn(masks, axes=(1, 2, 3)))
+def warm_up_planner() -> None:
+    """Compile (or load from numba's on-disk cache) the planner's kernels now, on a tiny problem.
 
-
-def _window_overlaps(local: np.ndarray, spectra: np.ndarray, reach: np.ndarray, win: int, fft_shape: tuple[int, int, int]) -> np.ndarray:
-    """Belief in each move's overlap set, for every window cell: (heading, move, win, win, win).
-
-    Computed as circular cross-correlations by FFT (on a zero-padded fast length); the offsets
-    never wrap because the window is padded by the footprint's reach. FFT rounding (~1e-16 of the mass) is taken off with a
-    1e-12 margin so the result never exceeds the exact sum (the bound stays admissible).
+    The first plan in a process otherwise pays it: seconds when compiling, about a second when
+    loading. Behaviours call this from ``setup()``, before the mission flies.
     """
-    corr = irfftn(rfftn(local, s=fft_shape)[None, None] * spectra, s=fft_shape, axes=(2, 3, 4), workers=-1)
-    r = reach
-    corr = corr[:, :, r[0] : r[0] + win, r[1] : r[1] + win, r[2] : r[2] + win]
-    return np.maximum(corr - 1e-12, 0.0)
+    spec = GridSpec((0.0, 0.0, 0.0), 20.0, (3, 3, 2))
+    planner = RecedingHorizonPlanner(SensorModel(CameraModel(), spec), horizon=2)
+    planner.plan(np.ones(spec.shape), spec.center_of([1, 1, 0]), 0.0)
 
 
-class _Search:
-    """Depth-first branch and bound over move sequences (one instance per plan)."""
+def _membership(stencil: np.ndarray, reach: int) -> np.ndarray:
+    """Boolean cube over offsets within reach + 1 cells: True where the look sees that offset."""
+    cube = np.zeros((2 * reach + 3,) * 3, dtype=bool)
+    if len(stencil):
+        cube[tuple((stencil + reach + 1).T)] = True
+    return cube
 
-    def __init__(self, planner: RecedingHorizonPlanner, flat, offsets, pos_base, base, valid, bounds, pd) -> None:
-        self.h, self.gamma, self.threshold = planner.horizon, planner.gamma, planner.threshold
-        self.offsets, self.pos_base, self.base, self.valid, self.bounds, self.pd = offsets, pos_base, base, valid, bounds, pd
-        self.win = base.shape[0]
-        self.best_gain = -math.inf
-        self.best_path: list[np.ndarray] | None = None
-        self.nodes = 0
-        self.budget = planner.node_budget
-        self.cut = False
 
-    def expand(self, depth: int, u: np.ndarray, heading: int, g: float, flat: np.ndarray, path: list[np.ndarray]) -> None:
-        self.nodes += 1
-        nbrs = u + MOVES
-        ok = np.all((nbrs >= 0) & (nbrs < self.win), axis=1)
-        ok[ok] = self.valid[tuple(nbrs[ok].T)]
-        if not ok.any():
-            return
-        nbrs = nbrs[ok]
-        heads = move_headings(heading)[ok]
-        idx = self.base[tuple(nbrs.T)][:, None] * self.pos_base[heads] + self.offsets[heads]
-        disc = self.gamma ** (depth + 1)
-        gains = g + disc * (self.pd * flat[idx].sum(axis=1))
-        keep = gains > self.threshold  # Algorithm 2's gain threshold
-        if not keep.any():
-            return
-        nbrs, heads, idx, gains = nbrs[keep], heads[keep], idx[keep], gains[keep]
-        top = int(np.argmax(gains))
-        if gains[top] > self.best_gain:
-            self.best_gain, self.best_path = float(gains[top]), path + [nbrs[top]]
-        if depth + 1 == self.h:
-            return
-        bound = gains + disc * self.bounds[self.h - depth - 1][tuple(nbrs.T) + (heads,)]
-        for i in np.argsort(-bound, kind="stable"):
-            # Admissible bound no better than the incumbent: nothing below can win (slack for rounding).
-            if bound[i] * (1.0 + 1e-12) + 1e-15 <= self.best_gain:
-                break
-            if self.budget is not None and self.nodes >= self.budget:
-                self.cut = True  # approximate from here on: the caller asked for an anytime answer
-                return
-            child = flat.copy()
-            child[idx[i]] *= 1.0 - self.pd
-            self.expand(depth + 1, nbrs[i], int(heads[i]), float(gains[i]), child, path + [nbrs[i]])
+def _overlap_indices(stencils: list[np.ndarray], members: np.ndarray, prev: int, reach: int,
+                     width: int) -> tuple[np.ndarray, np.ndarray]:
+    """For each move from heading ``prev``: the positions (in the new look's stencil) of the offsets
+    s with s + move inside the previous look -- the cells both looks see. Padded to ``width``."""
+    idx = np.zeros((len(MOVES), width), dtype=np.int64)
+    n = np.zeros(len(MOVES), dtype=np.int64)
+    for mi, (d, head) in enumerate(zip(MOVES, MOVE_HEADING)):
+        st = stencils[prev if head < 0 else head]
+        if len(st):
+            pos = np.flatnonzero(members[prev][tuple((st + d + reach + 1).T)])
+            idx[mi, : len(pos)], n[mi] = pos, len(pos)
+    return idx, n

@@ -171,3 +171,23 @@ def test_a_node_budget_gives_an_approximate_answer_flagged_as_such():
     assert exact.exact and exact.nodes > 2
     assert not capped.exact and capped.nodes == 2
     assert capped.gain <= exact.gain + 1e-15
+
+
+@st.composite
+def long_horizon_problems(draw):
+    """Horizons 4 and 5 on grids small enough for the brute force (one or two layers)."""
+    spec, belief, camera, start, yaw0, _, gamma, threshold, blocked = draw(problems())
+    shape = (draw(st.integers(3, 4)), draw(st.integers(3, 4)), draw(st.integers(1, 2)))
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    belief = rng.random(shape) ** draw(st.sampled_from([1, 4]))
+    start = np.array([rng.integers(n) for n in shape])
+    blocked = rng.random(shape) < 0.15
+    blocked[tuple(start)] = False
+    h = draw(st.integers(4, 5)) if shape[2] == 1 else 4
+    return GridSpec((0.0, 0.0, 0.0), 20.0, shape), belief, camera, start, yaw0, h, gamma, threshold, blocked
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(long_horizon_problems())
+def test_rhc_returns_the_brute_force_optimum_at_horizons_four_and_five(problem):
+    test_rhc_returns_the_brute_force_optimum.hypothesis.inner_test(problem)
