@@ -30,6 +30,13 @@ _COMMAND_MODULES = (
     "chaser_bt.log.commands",
 )
 
+# Commands that run the simulator live in sitl/ and are imported only when named (DESIGN §2: chaser_bt
+# reaches the simulator through lazily imported entry points); the others are listed but not loaded.
+_SIM_COMMANDS = {
+    "campaign": ("sitl.campaign", "rehearse a tree over many seeds and scenarios in parallel; report and plots"),
+    "search-trial": ("sitl.search_trial", "fly the search-only trial (radar cut at 200 m, camera blind) and log belief gain"),
+}
+
 log = logging.getLogger("chaser_bt.cli")
 
 
@@ -38,7 +45,8 @@ class _BadInput(Exception):
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = _parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = _parser(argv)
     args = parser.parse_args(argv)
     logging.basicConfig(
         level=logging.DEBUG if args.verbose > 1 else logging.INFO if args.verbose else logging.WARNING,
@@ -54,7 +62,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_OK
 
 
-def _parser() -> argparse.ArgumentParser:
+def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="chaser-bt", description=__doc__.splitlines()[0])
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more logging (-vv for debug)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -105,6 +113,12 @@ def _parser() -> argparse.ArgumentParser:
 
     for module in _COMMAND_MODULES:
         importlib.import_module(module).add_command(sub)
+    named = next((a for a in argv if not a.startswith("-")), None)
+    for name, (module, help_) in _SIM_COMMANDS.items():
+        if name == named:
+            importlib.import_module(module).add_command(sub)
+        else:  # listed in --help; its real parser is built when the command is named
+            sub.add_parser(name, help=help_, add_help=False)
 
     p = command("sitl", _sitl, "start the built-in ArduCopter-compatible simulator on loopback")
     p.add_argument("--scenario", required=True, type=Path)
