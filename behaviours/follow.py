@@ -92,6 +92,9 @@ class _Follow(CommandingBehaviour):
         "use_roll": input_port(bool, "Roll loop: full horizontal control", default=False),
         "feed_forward": input_port(bool, "Feed the target's velocity forward", default=False),
         "stale_after_s": input_port(float, "Hover when target data is older than this (s)", default=2.0),
+        "max_lean_deg": input_port(float, "Lean limit (deg) below the vehicle's ANGLE_MAX; 0 = ANGLE_MAX", default=0.0),
+        "measured_rates": input_port(bool, "Derivative terms from the target's measured velocity (else from the "
+                                     "filtered process variables)", default=True),
         "give_up_after_s": input_port(float, "FAILURE after this long stale (s); 0 = keep hovering", default=0.0),
         "state": state_port(),
     }
@@ -99,13 +102,19 @@ class _Follow(CommandingBehaviour):
     def target(self) -> TargetCue | None:
         return _optional(self, "target")
 
+    def config_options(self) -> dict[str, Any]:
+        """Further FollowConfig fields from this leaf's own ports."""
+        return {}
+
     def initialise(self) -> None:
         out = self.get_input("output")
         self._mode = "ALT_HOLD" if out is FollowOutput.ALT_HOLD else "GUIDED"
         config = FollowConfig(slant_range_m=self.get_input("slant_range_m"),
                               elevation_rad=math.radians(self.get_input("elevation_deg")),
                               use_roll=self.get_input("use_roll"), feed_forward=self.get_input("feed_forward"),
-                              stale_after_s=self.get_input("stale_after_s"))
+                              stale_after_s=self.get_input("stale_after_s"),
+                              max_lean_rad=math.radians(self.get_input("max_lean_deg")) or None,
+                              measured_rates=self.get_input("measured_rates"), **self.config_options())
         link = self._link()
         for name in STICK_PARAMS:  # the stick mapping is the vehicle's: ask for its parameters
             if name not in link.params:
@@ -170,9 +179,14 @@ class CVFollow(_Follow):
         "target": input_port(TargetEstimate, "Vision target estimate", required=False, default_key=ESTIMATE_KEY),
         "range_cue": input_port(TargetCue, "Optional cue whose distance replaces the vision range (GPS range)",
                                 required=False, default_key=TELEMETRY_KEY),
+        "range_smoothing_s": input_port(float, "Vision range low-pass time constant (s): keep the bearing, slow the "
+                                        "range; 0 = use the estimate as it is", default=0.0),
         **_Follow.COMMON_PORTS,
     }
     OUTPUT_PORTS: dict = {}
+
+    def config_options(self) -> dict[str, Any]:
+        return {"range_smoothing_s": self.get_input("range_smoothing_s")}
 
     def target(self) -> TargetCue | None:
         est: TargetEstimate | None = _optional(self, "target")

@@ -1,7 +1,10 @@
 """Scoring a follow flight against the simulator's truth (rehearsal-side only, like sitl.rehearsal).
 
-:func:`fly_follow` takes off, hands the intruder's telemetry to a two-node follow tree
-(``TargetTelemetryCue`` -> ``FollowGlobal``) and records, every 0.2 s of simulated time, whether the
+:func:`fly_follow` takes off and follows the intruder with a two-node tree, by one of two range
+sources: ``"telemetry"`` hands the intruder's telemetry to ``TargetTelemetryCue`` -> ``FollowGlobal``
+(the paper's GPS range); ``"vision"`` renders the chaser's camera (the paper's e-con, tilted down by
+the set-point elevation) and runs the shipped detector: ``VisionPipeline`` -> ``CVFollow``, azimuth,
+elevation and range all from the camera (range from the box size), no telemetry at all. It records, every 0.2 s of simulated time, whether the
 intruder is inside the chaser's fixed camera (the paper's e-con, tilted down by the set-point
 elevation) and the true relative geometry. Scores count from the moment the intruder starts
 moving (its ``start_s``): the share of that time with the target in the FOV, and the slant-range
@@ -15,17 +18,29 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+import py_trees
+
+from chaser_bt.cue import TargetEstimate
 from chaser_bt.mission.runner import MissionRunner
 from chaser_bt.target_telemetry import TargetTelemetry
 from chaser_bt.tree import load_tree_text, reset_blackboard
 from chaser_bt.vehicle import LinkConfig
 from chaser_bt.vision.camera import CameraModel
+from chaser_bt.vision.pipeline import CameraSensor, PipelineConfig, VisionPipeline
+from sitl.camera.frame_source import SimTarget, SimulatorFrameSource
 from sitl.rehearsal import InProcessVehicle
 from sitl.scenario import Scenario
 
-__all__ = ["FollowScore", "fly_follow", "intruder_scenario", "TRAJECTORY_PARAMS"]
+__all__ = ["FollowScore", "fly_follow", "intruder_scenario", "TRAJECTORY_PARAMS", "RANGE_SOURCES",
+           "VISION_FOLLOW_PORTS"]
 
 SAMPLE_S = 0.2
+RANGE_SOURCES = ("telemetry", "vision")
+#: CVFollow's ports for following on the camera's own range (no telemetry): range low-passed along
+#: the accurate bearing, derivative terms from the filtered process variables rather than from
+#: differenced camera positions, lean held to 15 deg so the fixed camera keeps the target in view.
+VISION_FOLLOW_PORTS = "range_smoothing_s: 3, measured_rates: false, max_lean_deg: 15"
+ESTIMATE_FRESH_S = 0.5  # an estimate younger than this counts as the camera tracking the target
 
 #: One representative intruder per trajectory kind (sitl/scenarios/README.md), starting 40 m north of home.
 TRAJECTORY_PARAMS: dict[str, dict] = {
@@ -69,6 +84,8 @@ class FollowScore:
     chaser_speed: list[float] = field(default_factory=list)  # horizontal, m/s
     target_speed: list[float] = field(default_factory=list)
     azimuth_rad: list[float] = field(default_factory=list)  # target off the chaser's nose (left positive)
+    vision_range_err_m: list[float] = field(default_factory=list)  # estimate minus true range, when fresh
+    tracking: list[bool] = field(default_factory=list)  # a fresh vision estimate at the sample
 
     @property
     def in_fov_frac(self) -> float:
@@ -80,22 +97,58 @@ class FollowScore:
     def elev_err_deg_p50(self, el_sp: float) -> float:
         return float(np.degrees(np.median(np.abs(np.asarray(self.elevation_rad) - el_sp))))
 
+    @property
+    def vision_range_abs_err_p50(self) -> float:
+        """Median |vision range - true range| over samples with a fresh estimate (NaN: none)."""
+        e = np.abs(self.vision_range_err_m)
+        return float(np.median(e)) if e.size else float("nan")
+
+    @property
+    def tracking_frac(self) -> float:
+        """Share of samples with a fresh vision estimate (NaN when vision was not flown)."""
+        return float(np.mean(self.tracking)) if self.tracking else float("nan")
+
 
 def fly_follow(scenario: Scenario, seed: int, *, follow_ports: str = "", duration_s: float = 150.0,
-               slant_range_m: float = 40.0, elevation_deg: float = 40.0, vehicle: InProcessVehicle | None = None
+               slant_range_m: float = 40.0, elevation_deg: float = 40.0, vehicle: InProcessVehicle | None = None,
+               range_source: str = "telemetry", camera_size: tuple[int, int] = (640, 480),
+               vision_ports: str = "", target_kind: str = "s1000", pipeline_config: PipelineConfig | None = None
                ) -> tuple[FollowScore, InProcessVehicle, MissionRunner]:
-    """Take off, follow the scenario's first intruder by its telemetry, score ``duration_s`` of its flight."""
+    """Take off, follow the scenario's first intruder, score ``duration_s`` of its flight.
+
+    Args:
+        range_source: ``"telemetry"`` (FollowGlobal on the intruder's MAVLink position) or
+            ``"vision"`` (CVFollow on the rendered camera's estimate, no telemetry).
+        camera_size: the rendered camera's (width, height) with vision.
+        follow_ports, vision_ports: extra ports of the follow leaf and of VisionPipeline (YAML flow).
+        target_kind: the airframe the camera draws for the intruder (it flies as the scenario
+            says): ``s1000`` by default, the target of the paper's flight (section 4); a Phantom is
+            under 4 px at 40 m in a 640 px frame, below what the shipped detector finds.
+        pipeline_config: the vision pipeline's settings (default ``PipelineConfig()``).
+    """
+    if range_source not in RANGE_SOURCES:
+        raise ValueError(f"range_source must be one of {', '.join(RANGE_SOURCES)}, got {range_source!r}")
     reset_blackboard()
     v = vehicle or InProcessVehicle(scenario, seed, link_config=LinkConfig(target_sysid=1))
     intruder = v.sim.intruders[0]
-    tel = TargetTelemetry.attach(v.link, v.clock.now)
+    tel = TargetTelemetry.attach(v.link, v.clock.now) if range_source == "telemetry" else None
     alt = intruder.pos[2] + slant_range_m * math.sin(math.radians(elevation_deg))
     _run(v, f"ArmAndTakeoff: {{altitude_m: {alt:.1f}}}", {}, 150.0)
     ports = f"slant_range_m: {slant_range_m}, elevation_deg: {elevation_deg}" + (f", {follow_ports}" if follow_ports else "")
-    body = ("ReactiveSequence:\n  children:\n    - TargetTelemetryCue: {sysid: %d}\n    - FollowGlobal: {%s}\n"
-            % (intruder.spec.sysid, ports))
-    runner = _runner(v, body, {"target_telemetry": tel})
-    cam = CameraModel(tilt_rad=math.radians(elevation_deg), max_range_m=1e6)
+    cam = CameraModel(width_px=int(camera_size[0]), height_px=int(camera_size[1]), tilt_rad=math.radians(elevation_deg))
+    if tel is not None:
+        body = ("ReactiveSequence:\n  children:\n    - TargetTelemetryCue: {sysid: %d}\n    - FollowGlobal: {%s}\n"
+                % (intruder.spec.sysid, ports))
+        runner = _runner(v, body, {"target_telemetry": tel})
+    else:
+        from sitl.sensors import shared_detector, shared_ground
+
+        source = SimulatorFrameSource(v.sim, cam, [SimTarget(target_kind, intruder)], seed, ground=shared_ground())
+        camera = CameraSensor(source, VisionPipeline(cam, shared_detector(), pipeline_config or PipelineConfig()))
+        body = ("ReactiveSequence:\n  children:\n    - ForceSuccess: {child: {VisionPipeline: {%s}}}\n"
+                "    - CVFollow: {%s}\n" % (vision_ports, ports))
+        runner = _runner(v, body, {"camera": camera})
+    cam = CameraModel(width_px=cam.width_px, height_px=cam.height_px, tilt_rad=cam.tilt_rad, max_range_m=1e6)
     score = FollowScore()
     t_start = intruder.spec.start_s
     next_sample = [t_start]
@@ -118,10 +171,25 @@ def fly_follow(scenario: Scenario, seed: int, *, follow_ports: str = "", duratio
             score.target_speed.append(float(math.hypot(*intruder.vel[:2])))
             yaw_enu = math.pi / 2 - truth.euler_ned[2]
             score.azimuth_rad.append((math.atan2(d[1], d[0]) - yaw_enu + math.pi) % (2 * math.pi) - math.pi)
+            if range_source == "vision":
+                est = _estimate()
+                fresh = est is not None and t - est.t <= ESTIMATE_FRESH_S
+                score.tracking.append(fresh)
+                if fresh and math.isfinite(est.range_m):
+                    score.vision_range_err_m.append(est.range_m - float(np.linalg.norm(d)))
         return runner.finished
 
     v.run_until(step, t_start + duration_s - v.sim.time_s)
     return score, v, runner
+
+
+def _estimate() -> TargetEstimate | None:
+    """The camera's estimate on the blackboard (scoring only), None before the first."""
+    try:
+        est = py_trees.blackboard.Blackboard.get("/target/estimate")
+    except KeyError:
+        return None
+    return est if isinstance(est, TargetEstimate) else None
 
 
 def _runner(v: InProcessVehicle, body: str, resources: dict) -> MissionRunner:

@@ -9,6 +9,12 @@ ENU, FRD <-> FLU, 1e7-degree integers, cm and mm, scalar-first quaternions.
 Output goes to every attached port (a broadcast radio): a command's ACK reaches every client, which
 MAVLink clients tolerate because COMMAND_ACK carries the requester's system and component ids.
 
+With :meth:`MavlinkEndpoint.enable_signing` the endpoint signs everything it sends and, like
+ArduCopter with a signing key stored, acts only on messages that are correctly signed or are of a
+kind ArduPilot accepts unsigned (RADIO_STATUS, RADIO); the rest are dropped and counted in
+:attr:`MavlinkEndpoint.signing` (:mod:`chaser_bt.vehicle.signing`). Its signing timestamp follows
+the simulator's clock (boot epoch + sim time), as ArduPilot's follows GPS time.
+
 Periodic telemetry (what is due, and its lean encoding) lives in :mod:`sitl.telemetry`; this module
 handles everything that arrives and the replies to it. All times are the simulator's.
 """
@@ -17,6 +23,7 @@ from __future__ import annotations
 
 import math
 import os
+import weakref
 from dataclasses import dataclass
 from typing import Callable
 
@@ -31,6 +38,7 @@ from chaser_bt.geo import (  # noqa: E402
     ned_to_enu,
     quat_wxyz_to_xyzw,
 )
+from chaser_bt.vehicle.signing import SigningConfig, SigningGate, signing_timestamp  # noqa: E402
 from sitl.autopilot import FORCE_ARM_MAGIC, Autopilot  # noqa: E402
 from sitl.telemetry import StreamScheduler, TelemetryEncoder  # noqa: E402
 
@@ -69,7 +77,7 @@ _LOCAL_FRAMES = _OFFSET_FRAMES | {mavlink2.MAV_FRAME_LOCAL_NED}
 class EndpointStats:
     """Counters for diagnostics: what arrived, what was dropped and why."""
 
-    messages_in: int = 0
+    messages_in: int = 0  # acted on (with signing on: signed, or allowed unsigned)
     bad_packets: int = 0  # garbage bytes runs and packets with a bad CRC or header
     not_for_us: int = 0  # targeted at another system or component
     commands: int = 0
@@ -97,6 +105,10 @@ class MavlinkEndpoint:
         self, autopilot: Autopilot, *, start_unix_s: float, mav_type: int = mavlink2.MAV_TYPE_OCTOROTOR
     ) -> None:
         self._ap = autopilot
+        self._start_unix_s = start_unix_s
+        self.signing: SigningGate | None = None  # set by enable_signing()
+        self._signing_epoch_s = start_unix_s
+        self._channels: weakref.WeakSet[Channel] = weakref.WeakSet()  # open ones, for enable_signing
         self.sysid = int(autopilot.params.get("SYSID_THISMAV"))
         self._mav = mavlink2.MAVLink(None, srcSystem=self.sysid, srcComponent=COMPID)
         self._out = bytearray()
@@ -135,10 +147,36 @@ class MavlinkEndpoint:
         }
 
     # ------------------------------------------------------------------ public
-    @staticmethod
-    def open_channel() -> Channel:
-        """A parser for one more incoming byte stream."""
-        return Channel()
+    def open_channel(self) -> Channel:
+        """A parser for one more incoming byte stream (checking signatures once signing is on)."""
+        channel = Channel()
+        if self.signing is not None:
+            self.signing.attach(channel.parser)
+        self._channels.add(channel)
+        return channel
+
+    def enable_signing(self, config: SigningConfig, *, epoch_unix_s: float | None = None) -> SigningGate:
+        """Sign from now on and obey only correctly signed messages (and RADIO_STATUS/RADIO unsigned).
+
+        Args:
+            config: the key and the vehicle's link id.
+            epoch_unix_s: the Unix time of boot for the signing clock (default ``start_unix_s``,
+                reproducible). The real-time server passes the wall clock's: a real ArduCopter's
+                clock is GPS time, and ground stations start their timestamps at the wall clock, so
+                a vehicle clock far behind theirs looks like a replayed recording to them.
+
+        Returns the gate, whose ``counters`` count what was accepted and rejected, and why.
+        """
+        self._signing_epoch_s = self._start_unix_s if epoch_unix_s is None else float(epoch_unix_s)
+        gate = SigningGate(config, signing_timestamp(self._signing_clock()))
+        gate.attach(self._mav)
+        for channel in self._channels:
+            gate.attach(channel.parser)
+        self.signing = gate
+        return gate
+
+    def _signing_clock(self) -> float:
+        return self._signing_epoch_s + self._ap.time_s
 
     @property
     def gcs_sysid(self) -> int:
@@ -157,6 +195,8 @@ class MavlinkEndpoint:
             if kind == "BAD_DATA":
                 self.stats.bad_packets += 1
                 continue
+            if self.signing is not None and not self.signing.admit(msg):
+                continue  # unsigned or wrongly signed: counted by the gate, never acted on
             self.stats.messages_in += 1
             handler = self._handlers.get(kind)
             if handler is not None:
@@ -166,6 +206,8 @@ class MavlinkEndpoint:
         """Queue what is due after a physics step: STATUSTEXTs, HOME_POSITION on change, one-shots,
         streamed parameters and periodic telemetry."""
         ap = self._ap
+        if self.signing is not None:
+            self.signing.advance(self._signing_clock())
         self.telemetry.begin()
         for severity, text in ap.pop_statustexts():
             self._send_statustext(severity, text)

@@ -7,6 +7,10 @@ the ports' buffers and accepting TCP clients; a step reads those buffers, exactl
 
 If the machine cannot keep up with ``speedup``, the sim runs as fast as it can and the pacing
 re-anchors (logged once) instead of trying to catch up in a burst.
+
+With a signing key (``chaser-bt sitl --signing-key FILE``) the vehicle signs its MAVLink and obeys
+only correctly signed messages, as an ArduCopter with a stored key does
+(:meth:`sitl.mavlink_endpoint.MavlinkEndpoint.enable_signing`).
 """
 
 from __future__ import annotations
@@ -17,6 +21,8 @@ import signal
 import threading
 import time
 from typing import Callable
+
+from chaser_bt.vehicle.signing import SigningConfig
 
 from sitl.scenario import Scenario
 from sitl.simulator import Simulator
@@ -41,6 +47,7 @@ def serve(
     stop: threading.Event | None = None,
     monotonic: Callable[[], float] = time.monotonic,
     physics_hz: float | None = None,
+    signing: SigningConfig | None = None,
 ) -> None:
     """Run the simulator in real time (times ``speedup``) until ``stop`` is set, Ctrl-C or SIGTERM.
 
@@ -53,11 +60,15 @@ def serve(
         stop: set it (from another thread) to end the loop.
         monotonic: the wall clock.
         physics_hz: physics rate (default: the simulator's).
+        signing: MAVLink 2 signing key and link id (``SigningConfig.from_file(path)``); None: off.
     """
     if not speedup > 0.0:
         raise ValueError(f"speedup must be > 0, got {speedup}")
     stop = stop if stop is not None else threading.Event()
     sim = Simulator(scenario, seed, physics_hz=physics_hz)
+    if signing is not None:
+        # Clients stamp with the wall clock: so does the vehicle (ArduPilot: GPS time).
+        sim.endpoint.enable_signing(signing, epoch_unix_s=time.time() - sim.time_s)
     udp = UdpPort(udp_port, monotonic=monotonic)
     tcp = TcpServer(tcp_port)
     clients: list[TcpClientPort] = []
@@ -72,6 +83,10 @@ def serve(
     except KeyboardInterrupt:
         log.info("interrupted")
     finally:
+        if sim.endpoint.signing is not None:
+            c = sim.endpoint.signing.counters
+            log.info("signing: %d signed, %d unsigned rejected, %d bad signatures", c.signed,
+                     c.unsigned_rejected, c.bad_signature)
         if previous_sigterm is not None:
             signal.signal(signal.SIGTERM, previous_sigterm)
         for client in clients:

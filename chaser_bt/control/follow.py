@@ -27,6 +27,16 @@ Options the paper left out:
   loops: the line-of-sight rate to yaw, the target's climb rate to climb, and a velocity-matching
   term along the nose (and across it with roll) to the accelerations.
 
+- ``range_smoothing_s``: lean on what the camera measures well. A camera estimate
+  (:class:`~chaser_bt.cue.TargetEstimate`) has an accurate bearing and a poor range (box size;
+  the paper's section 5: "too variable to use with the relative position controller, even with
+  strong smoothing"). With this time constant > 0, the controller keeps the bearing as measured
+  and replaces the range by a slow one (:class:`LineOfSightRange`: a first-order low-pass that
+  moves with the chaser's own, well-known, velocity along the line of sight), so range noise no
+  longer reaches the loops and the differenced target velocity: azimuth and elevation, hence the
+  target's place in the image, are held on the accurate measurement, and a range error only
+  changes the stand-off distance, slowly.
+
 Safety (section 3.2): no target data for ``stale_after_s`` (2 s) -> a hover command at once, and the
 loops reset; the behaviour sends hover on exit.
 
@@ -45,11 +55,11 @@ import numpy as np
 
 from chaser_bt.control.pid import Pid, PidGains
 from chaser_bt.control.sticks import GRAVITY, RcSticks, StickMap
-from chaser_bt.cue import TargetCue
+from chaser_bt.cue import TargetCue, TargetEstimate
 from chaser_bt.geo import wrap_pi
 
 __all__ = ["FollowConfig", "FollowCommand", "FollowController", "ProcessVariables", "MedianWindow",
-           "process_variables"]
+           "LineOfSightRange", "process_variables"]
 
 
 @dataclass(frozen=True)
@@ -73,6 +83,8 @@ class FollowConfig:
     stale_after_s: float = 2.0
     guided_position_gain: float = 0.5  # 1/s: GUIDED velocity per metre of horizontal position error
     guided_speed_max: float = 20.0  # m/s
+    range_smoothing_s: float = 0.0  # > 0: camera estimates keep their bearing, range low-passed (see module doc)
+    max_lean_rad: float | None = None  # lean limit below the vehicle's ANGLE_MAX (keeps a fixed camera's view)
 
     def __post_init__(self) -> None:
         if not self.slant_range_m > 0.0:
@@ -81,6 +93,10 @@ class FollowConfig:
             raise ValueError(f"elevation must be in [0, 90) deg, got {math.degrees(self.elevation_rad):.1f}")
         if self.median_window < 1 or not self.rate_hz > 0.0 or not self.stale_after_s > 0.0:
             raise ValueError("median_window >= 1, rate_hz > 0 and stale_after_s > 0 are required")
+        if self.max_lean_rad is not None and not 0.0 < self.max_lean_rad < math.pi / 2:
+            raise ValueError(f"max_lean_rad must be in (0, 90) deg, got {self.max_lean_rad}")
+        if not self.range_smoothing_s >= 0.0:
+            raise ValueError(f"range_smoothing_s must be >= 0, got {self.range_smoothing_s}")
 
     @property
     def ground_range_sp(self) -> float:
@@ -140,6 +156,39 @@ class MedianWindow:
         return float(np.median(self._values))
 
 
+class LineOfSightRange:
+    """A slow range along an accurate bearing: first-order low-pass with time constant ``tau_s``.
+
+    Between measurements the range moves with the chaser's own velocity along the line of sight
+    (known from its telemetry): ``r -= (v_own . b) dt``; each measurement then pulls it by
+    ``1 - exp(-dt / tau)``. What the target itself does along the line of sight shows up only
+    through the measurements, i.e. with a lag of about ``tau_s``.
+    """
+
+    def __init__(self, tau_s: float) -> None:
+        if not tau_s > 0.0:
+            raise ValueError(f"tau_s must be > 0, got {tau_s}")
+        self.tau_s = tau_s
+        self.range_m: float | None = None
+        self._t = 0.0
+
+    def reset(self) -> None:
+        self.range_m = None
+
+    def update(self, t: float, range_m: float, bearing_enu: np.ndarray, own_vel_enu: np.ndarray) -> float:
+        """Take a measured range at ``t``; the smoothed range."""
+        if self.range_m is None or t <= self._t:
+            if self.range_m is None:
+                self.range_m, self._t = float(range_m), t
+            return self.range_m
+        dt = t - self._t
+        closing = float(np.dot(own_vel_enu, bearing_enu)) if np.all(np.isfinite(own_vel_enu)) else 0.0
+        predicted = max(self.range_m - closing * dt, 1.0)
+        self.range_m = predicted + (1.0 - math.exp(-dt / self.tau_s)) * (float(range_m) - predicted)
+        self._t = t
+        return self.range_m
+
+
 @dataclass(frozen=True)
 class FollowCommand:
     """One control step's demand.
@@ -181,6 +230,8 @@ class FollowController:
         self._last: FollowCommand | None = None
         self._last_cue: TargetCue | None = None
         self._target_vel: np.ndarray | None = None
+        self._los_range = LineOfSightRange(config.range_smoothing_s) if config.range_smoothing_s > 0 else None
+        self._los_cue: tuple[TargetEstimate, TargetCue] | None = None  # (estimate, its smoothed cue)
 
     def reset(self) -> None:
         """Forget filters, integrals and the last command (after hover or a new engagement)."""
@@ -191,6 +242,9 @@ class FollowController:
         self._last = None
         self._last_cue = None
         self._target_vel = None
+        if self._los_range is not None:
+            self._los_range.reset()
+        self._los_cue = None
 
     def is_stale(self, t: float, cue: TargetCue | None) -> bool:
         """No cue, or the newest one is older than ``stale_after_s``."""
@@ -208,6 +262,7 @@ class FollowController:
             self.reset()
             self._last = FollowCommand(t, hover=True, reason="own position or heading unknown")
             return self._last
+        cue = self._smoothed(cue, np.asarray(own_vel_enu, float))
         last = self._last
         if last is not None and not last.hover and t - last.t < self.config.period_s - 1e-6:
             return last
@@ -217,6 +272,21 @@ class FollowController:
         return self._last
 
     # -- internals -----------------------------------------------------------------------------
+    def _smoothed(self, cue: TargetCue, own_vel: np.ndarray) -> TargetCue:
+        """A camera estimate with its range replaced by the line-of-sight low-pass (when enabled)."""
+        if self._los_range is None or not isinstance(cue, TargetEstimate) or not math.isfinite(cue.range_m):
+            return cue
+        if self._los_cue is not None and self._los_cue[0] is cue:
+            return self._los_cue[1]
+        if self._los_cue is not None and self._los_cue[0].track_id != cue.track_id:
+            self._los_range.reset()  # another target: its range starts afresh
+        camera = cue.position_enu - cue.range_m * cue.bearing_enu
+        r = self._los_range.update(cue.t, cue.range_m, cue.bearing_enu, own_vel)
+        smoothed = TargetCue(cue.t, camera + r * cue.bearing_enu, cue.covariance_enu, cue.velocity_enu, cue.source,
+                             cue.track_id)
+        self._los_cue = (cue, smoothed)
+        return smoothed
+
     def _observe_target(self, cue: TargetCue) -> None:
         """Target velocity: the cue's own, else differenced positions of successive cues."""
         if cue.velocity_enu is not None:
@@ -241,7 +311,8 @@ class FollowController:
         ff = c.feed_forward and self._target_vel is not None
 
         sm = self.stick_map
-        amax = GRAVITY * math.tan(sm.angle_max_rad)
+        lean = sm.angle_max_rad if c.max_lean_rad is None else min(sm.angle_max_rad, c.max_lean_rad)
+        amax = GRAVITY * math.tan(lean)
         yaw_ff = 0.0
         if ff and gr > 1.0:
             d = cue.position_enu[:2] - pos[:2]

@@ -12,6 +12,11 @@ or a real aircraft; only the connection string changes (DESIGN §5). Its rules:
   SET_MESSAGE_INTERVAL per stream (SITL streams little unless asked), HOME_POSITION asked for with
   MAV_CMD_REQUEST_MESSAGE until it arrives, and a held RC override resent at 5 Hz (overrides
   expire after RC_OVERRIDE_TIME, 3 s).
+- With ``LinkConfig.signing`` it signs what it sends (MAVLink 2 signing, timestamp from the Unix
+  time at opening) and believes only correctly signed messages from its vehicle
+  (:mod:`chaser_bt.vehicle.signing`): unsigned or wrongly signed ones claiming to be the vehicle
+  are dropped and counted in :attr:`VehicleLink.signing`. Other systems' messages (an intruder's
+  own telemetry) are not ours to authenticate; they reach listeners as before and never the state.
 - A command counts as accepted only when ArduCopter acked it *and*, where telemetry can show it,
   telemetry shows it (mode in HEARTBEAT.custom_mode, armed flag): ArduPilot acks first.
 """
@@ -34,6 +39,7 @@ from chaser_bt.vehicle.commands import Command, CommandTracker, Setpoint
 from chaser_bt.vehicle.connection import PipeConnection, mavutil, open_connection
 from chaser_bt.vehicle.errors import CommandRejected, LinkTimeout, VehicleError, VehicleQuiet, VehicleUnreachable
 from chaser_bt.vehicle.pipe import PipeEnd
+from chaser_bt.vehicle.signing import SigningConfig, SigningGate, signing_timestamp
 from chaser_bt.vehicle.state import VehicleState, statustext_str, update_state
 
 __all__ = ["LinkConfig", "LinkCounters", "VehicleLink", "DEFAULT_STREAM_RATES_HZ", "COPTER_MODES"]
@@ -103,6 +109,7 @@ class LinkConfig:
     rc_resend_hz: float = 5.0  # held RC overrides are resent this often (they expire after 3 s)
     stream_rates_hz: Mapping[str, float] = field(default_factory=lambda: DEFAULT_STREAM_RATES_HZ)
     origin: GeoPoint | None = None  # ENU origin; None: the vehicle's home
+    signing: SigningConfig | None = None  # MAVLink 2 signing key and link id; None: unsigned link
 
     def __post_init__(self) -> None:
         for name in ("gcs_sysid", "gcs_compid"):
@@ -170,6 +177,11 @@ class VehicleLink:
         self._on_receive: list[Callable[[Any], None]] = []
         self._on_send: list[Callable[[Any], None]] = []
         conn.mav.set_send_callback(self._notify_sent)
+        self.signing: SigningGate | None = None
+        if config.signing is not None:
+            # The Unix time makes the first timestamp newer than any this key signed before.
+            self.signing = SigningGate(config.signing, signing_timestamp(time.time()))
+            self.signing.attach(conn.mav)
 
     # ----------------------------------------------------------------------------- opening
     @classmethod
@@ -473,6 +485,9 @@ class VehicleLink:
 
     def _handle(self, msg: Any, now: float) -> int:
         mtype = msg.get_type()
+        if self.signing is not None and mtype != "BAD_DATA" and self._claims_vehicle(msg, mtype):
+            if not self.signing.admit(msg):
+                return 0  # unsigned or wrongly signed "vehicle": counted by the gate, never believed
         for listener in self._on_receive:
             listener(msg)
         if mtype == "BAD_DATA":
@@ -511,6 +526,13 @@ class VehicleLink:
                 self.frame = LocalFrame(self.state.home)
                 log.info("ENU frame origin = home %s", self.state.home)
         return 1
+
+    def _claims_vehicle(self, msg: Any, mtype: str) -> bool:
+        """From our vehicle's system, or an autopilot heartbeat that could make itself our vehicle."""
+        src = msg.get_srcSystem()
+        if self.target_sysid is not None and src == self.target_sysid:
+            return True
+        return self.target_compid is None and mtype == "HEARTBEAT" and _is_autopilot(msg)
 
     def _on_statustext(self, msg: Any, now: float) -> None:
         update_state(self.state, msg, self.frame)

@@ -1,0 +1,125 @@
+"""Streaming to the ground (the paper's fourth task): estimate, radar tracks and video with boxes.
+
+:class:`StreamToGround` sends, each tick, the ownship's status, the camera's target estimate
+(``/target/estimate``) when it is new, the radar tracks (from the ``radar=`` resource, the picture
+the radar behaviours see this tick) or else the radar cue (``/target/cue``), and at ``video_hz``
+the camera resource's last frame with the pipeline's current box drawn. The wire format is
+docs/ground.md (:mod:`chaser_bt.ground.protocol`). Streaming never fails a mission: it is RUNNING
+every tick, whatever the network does (errors are dropped datagrams, counted and logged once).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import py_trees
+
+from behaviours.base import VehicleBehaviour, state_port
+from chaser_bt.cue import TargetCue, TargetEstimate
+from chaser_bt.ground.protocol import Box, cue_message, estimate_message, status_message, tracks_message
+from chaser_bt.ground.sender import GroundSender
+from chaser_bt.radar.feed import RadarFeed
+from chaser_bt.tree import NodeKind, input_port, register_behaviour
+from chaser_bt.vision.pipeline import CameraSensor
+
+Status = py_trees.common.Status
+
+
+def _optional(node: py_trees.ports.PortsMixin, port: str) -> Any:
+    try:
+        return node.get_input(port)
+    except Exception:  # nothing written to the key yet
+        return None
+
+
+@register_behaviour
+class StreamToGround(VehicleBehaviour):
+    """Send status, estimate, tracks and video to ``host:port`` over UDP; always RUNNING."""
+
+    NODE_KIND = NodeKind.ACTION
+    INPUT_PORTS = {
+        "host": input_port(str, "Ground station address", default="127.0.0.1"),
+        "port": input_port(int, "Ground station UDP port", default=14600),
+        "video_hz": input_port(float, "Video frames per second (0: no video)", default=5.0),
+        "jpeg_quality": input_port(int, "JPEG quality of the video (1-100)", default=70),
+        "estimate": input_port(TargetEstimate, "The camera's target estimate", required=False,
+                               default_key="/target/estimate"),
+        "cue": input_port(TargetCue, "The radar cue (sent when there is no radar resource)", required=False,
+                          default_key="/target/cue"),
+        "state": state_port(),
+    }
+    OUTPUT_PORTS: dict = {}
+
+    def setup(self, **kwargs: Any) -> None:
+        super().setup(**kwargs)
+        camera, radar = kwargs.get("camera"), kwargs.get("radar")
+        self.camera: CameraSensor | None = camera if isinstance(camera, CameraSensor) else None
+        self.radar: RadarFeed | None = radar if isinstance(radar, RadarFeed) else None
+        self.sender: GroundSender | None = None
+        self._host: str | None = None
+        self._last_estimate_t: float | None = None
+        self._last_cue_t: float | None = None
+        self._last_frame_index: int | None = None
+        self._next_frame_t = float("-inf")
+
+    def initialise(self) -> None:
+        host, port = self.get_input("host"), self.get_input("port")
+        if self.sender is None or self.sender.address[1] != port or self._host != host:
+            if self.sender is not None:
+                self.sender.close()
+            self._host = host
+            try:
+                self.sender = GroundSender(host, port)
+            except ValueError as e:  # a bad address: say so, keep the mission flying
+                self.sender = None
+                self.feedback_message = f"not streaming: {e}"
+
+    def update(self) -> Status:
+        if self.sender is None:
+            return Status.RUNNING
+        try:
+            self._send_all()
+        except ValueError as e:  # an unusable port value (jpeg_quality) or an oversized message
+            self.feedback_message = f"not sent: {e}"
+        return Status.RUNNING
+
+    def _send_all(self) -> None:
+        now, s, out = self._now(), self.state, self.sender
+        frame = self.link.frame if self.link is not None else None
+        origin = None if frame is None else (frame.origin.lat_deg, frame.origin.lon_deg, frame.origin.alt_m)
+        out.send_message("status", now, status_message(
+            position_enu=s.position_enu, velocity_enu=s.velocity_enu, yaw_enu_rad=s.yaw_enu_rad, mode=s.mode,
+            armed=s.armed, alt_rel_m=s.alt_rel_m, origin=origin, counters=out.counters.as_dict()))
+        est = _optional(self, "estimate")
+        if isinstance(est, TargetEstimate) and est.t != self._last_estimate_t:
+            self._last_estimate_t = est.t
+            out.send_message("estimate", now, estimate_message(est))
+        if self.radar is not None:
+            pic = self.radar.update(now, s.position_enu, s.velocity_enu)
+            out.send_message("tracks", now, tracks_message(pic.tracks.values(), pic.ownship_ids))
+        cue = _optional(self, "cue")
+        if isinstance(cue, TargetCue) and cue.t != self._last_cue_t:
+            self._last_cue_t = cue.t
+            out.send_message("cue", now, cue_message(cue))
+        self._send_video(now)
+        c = out.counters
+        self.feedback_message = f"{c.messages} messages, {c.frames} frames, {c.errors} dropped"
+
+    def _send_video(self, now: float) -> None:
+        hz = self.get_input("video_hz")
+        if self.camera is None or not hz > 0 or now < self._next_frame_t - 1e-6:
+            return
+        frame = self.camera.last_frame
+        if frame is None or frame.index == self._last_frame_index:
+            return
+        track = self.camera.pipeline.track
+        boxes = [] if track is None else [Box(track.box, f"{track.class_name} {track.score:.2f}")]
+        self._last_frame_index = frame.index
+        period = 1.0 / hz
+        self._next_frame_t = self._next_frame_t + period if self._next_frame_t + period > now else now + period
+        self.sender.send_frame(frame.image, frame.t, boxes, self.get_input("jpeg_quality"))
+
+    def shutdown(self) -> None:
+        if self.sender is not None:
+            self.sender.close()
+            self.sender = None
