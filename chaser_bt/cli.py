@@ -93,6 +93,7 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     p.add_argument("--camera", metavar="SOURCE", help="video file, stream URL or device index for the on-board camera")
     p.add_argument("--camera-size", type=_size, metavar="WxH", help="resize camera frames to this size")
     p.add_argument("--no-telemetry", action="store_true", help="do not listen for the intruder's own MAVLink position")
+    _signing_arguments(p)
     add_recording_arguments(p)
 
     p = command("rehearse", _rehearse, "fly a tree against the in-process simulator and report")
@@ -126,7 +127,26 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--tcp-port", type=int, default=5760)
     p.add_argument("--udp-port", type=int, default=14550)
+    _signing_arguments(p)
     return parser
+
+
+def _signing_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--signing-key", type=Path, metavar="FILE",
+                   help="MAVLink 2 signing key file: a line of 64 hex digits, or a passphrase (key = SHA-256, as MAVProxy's signing setup)")
+    p.add_argument("--signing-link-id", type=int, default=0, metavar="N", help="signing link id (default 0)")
+
+
+def _signing(args: argparse.Namespace):
+    """The SigningConfig named by ``--signing-key`` (None without one); a bad key file is bad input."""
+    if args.signing_key is None:
+        return None
+    from chaser_bt.vehicle.signing import SigningConfig, SigningKeyError
+
+    try:
+        return SigningConfig.from_file(args.signing_key, link_id=args.signing_link_id)
+    except (SigningKeyError, OSError, ValueError) as exc:
+        raise _BadInput(f"--signing-key: {exc}") from None
 
 
 # -- trees --------------------------------------------------------------------------------------
@@ -180,12 +200,13 @@ def _run(args: argparse.Namespace) -> int:
     from chaser_bt.mission.clock import FunctionClock, WallClock
     from chaser_bt.mission.flight_sensors import FlightSensorError
     from chaser_bt.mission.runner import MissionRunner, RunStatus
-    from chaser_bt.vehicle import VehicleError, VehicleLink
+    from chaser_bt.vehicle import LinkConfig, VehicleError, VehicleLink
 
     tree = _load_tree(args.tree)
     hook = _recording_hook(args)
+    config = LinkConfig(signing=_signing(args))
     try:
-        link = VehicleLink.connect(args.connect)
+        link = VehicleLink.connect(args.connect, config)
     except ValueError as exc:  # a malformed connection string
         raise _BadInput(str(exc)) from None
     except VehicleError as exc:
@@ -321,7 +342,8 @@ def _sitl(args: argparse.Namespace) -> int:
             print(f"  {url}")
         sys.stdout.flush()
 
-    serve(scenario, seed=args.seed, speedup=args.speedup, udp_port=args.udp_port, tcp_port=args.tcp_port, ready=ready)
+    serve(scenario, seed=args.seed, speedup=args.speedup, udp_port=args.udp_port, tcp_port=args.tcp_port, ready=ready,
+          signing=_signing(args))
     return EXIT_OK
 
 

@@ -121,3 +121,22 @@ def test_rehearse_show_ticks_prints_the_tree_at_each_change(capsys):
     assert "east corner RUNNING->SUCCESS" in out
     assert out.count("--- t = ") >= 6  # take-off, four legs, RTL at least
     assert "[*]" in out and "[✓]" in out  # statuses drawn in the tree
+
+
+def test_bad_signing_key_file_is_bad_input(tmp_path, capsys):
+    key = tmp_path / "key"
+    key.write_text("")
+    assert main(["run", str(PATROL), "--connect", "tcp:127.0.0.1:9", "--signing-key", str(key)]) == 2
+    assert "--signing-key" in capsys.readouterr().err
+    assert main(["sitl", "--scenario", str(SCENARIO), "--signing-key", str(tmp_path / "missing")]) == 2
+
+
+def test_simulator_commands_are_listed_but_loaded_only_when_named(capsys):
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    assert "campaign" in out and "search-trial" in out
+    with pytest.raises(SystemExit) as exc:
+        main(["search-trial", "--help"])
+    assert exc.value.code == 0
+    assert "--planner" in capsys.readouterr().out

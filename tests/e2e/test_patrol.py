@@ -69,10 +69,15 @@ def test_cli_rehearse_prints_the_json_report():
         assert key in report
 
 
-def test_run_flies_the_simulator_over_tcp_to_a_landing():
+@pytest.mark.parametrize("signed", [False, True], ids=["unsigned", "signed"])
+def test_run_flies_the_simulator_over_tcp_to_a_landing(signed, tmp_path):
     env = dict(os.environ, PYTHONUNBUFFERED="1")
+    signing = []
+    if signed:  # both ends share a MAVLink 2 signing key; the simulator obeys only signed commands
+        (tmp_path / "key").write_text("correct horse battery staple\n")
+        signing = ["--signing-key", str(tmp_path / "key")]
     sim = subprocess.Popen(
-        [*CLI, "sitl", "--scenario", str(SCENARIO), "--speedup", "25", "--tcp-port", "0", "--udp-port", "0"],
+        [*CLI, "sitl", "--scenario", str(SCENARIO), "--speedup", "25", "--tcp-port", "0", "--udp-port", "0", *signing],
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
     )
     try:
@@ -83,7 +88,7 @@ def test_run_flies_the_simulator_over_tcp_to_a_landing():
                 url = match.group(1)
                 break
         assert url, "the simulator printed no tcp connection string"
-        run = subprocess.run([*CLI, "run", str(TREE), "--connect", url], capture_output=True, text=True, timeout=240)
+        run = subprocess.run([*CLI, "run", str(TREE), "--connect", url, *signing], capture_output=True, text=True, timeout=240)
         assert run.returncode == 0, run.stdout + run.stderr
         assert "success" in run.stdout
     finally:
