@@ -4,12 +4,18 @@
 as ``camera=`` (beside ``link`` and ``clock``): one frame per tick through detector, trackers and
 projection, and writes the :class:`~chaser_bt.cue.TargetEstimate` to ``/target/estimate``. With
 ``range_from_telemetry`` it takes the range from the target's own position on
-``/target/telemetry`` (the paper's flights) instead of the box size. :class:`TargetInView` is
-SUCCESS while a confident estimate is fresh.
+``/target/telemetry`` (the paper's flights) instead of the box size. The tree picks the model:
+``detector`` names a shipped detector (``tiny_yolo`` for the drones, ``person_yolo`` for search and
+rescue; ``camera`` keeps the one the camera resource was built with), ``classes`` the class names
+that count as the target, and ``target_on_ground`` ranges a target standing on flat ground (a
+person) where its bearing meets the ground. :class:`TargetInView` is SUCCESS while a confident
+estimate is fresh.
 """
 
 from __future__ import annotations
 
+import enum
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -24,6 +30,21 @@ Status = py_trees.common.Status
 
 ESTIMATE_KEY = "/target/estimate"
 TELEMETRY_KEY = "/target/telemetry"
+
+
+class DetectorChoice(enum.Enum):
+    """Which detector the pipeline runs: the camera resource's own, or a shipped one by name."""
+
+    CAMERA = "camera"
+    TINY_YOLO = "tiny_yolo"      # s1000, phantom (the chase)
+    PERSON_YOLO = "person_yolo"  # person (search and rescue)
+
+
+@lru_cache(maxsize=4)
+def _shipped(name: str):
+    from chaser_bt.vision.detector.inference import shipped_detector
+
+    return shipped_detector(name)
 
 
 def _optional(node: py_trees.ports.PortsMixin, port: str) -> Any:
@@ -42,6 +63,10 @@ class VisionPipeline(VehicleBehaviour):
         "range_from_telemetry": input_port(bool, "Take range from the target's telemetry, not the box size", default=False),
         "telemetry": input_port(TargetCue, "Target's own position (telemetry cue)", required=False, default_key=TELEMETRY_KEY),
         "max_telemetry_age_s": input_port(float, "Older telemetry is not used for range (s)", default=2.0),
+        "detector": input_port(DetectorChoice, "Shipped detector to run (tiny_yolo, person_yolo) or camera: the camera's own",
+                               default=DetectorChoice.CAMERA),
+        "classes": input_port(list[str], "Class names that count as the target (empty: the camera's setting)", default=[]),
+        "target_on_ground": input_port(bool, "Target stands on flat ground: range where the bearing meets it", default=False),
         "state": state_port(),
     }
     OUTPUT_PORTS = {"estimate": output_port(TargetEstimate, "Where the camera sees the target", default_key=ESTIMATE_KEY)}
@@ -51,8 +76,28 @@ class VisionPipeline(VehicleBehaviour):
         if not isinstance(kwargs.get("camera"), CameraSensor):
             raise KeyError(f"{self.name}: setup() needs camera=CameraSensor(...) (the mission runner passes it)")
         self.camera: CameraSensor = kwargs["camera"]
+        choice = self.get_input("detector")
+        if choice is not DetectorChoice.CAMERA:
+            _shipped(choice.value)  # loaded before take-off: missing weights stop the mission here, not in flight
+
+    def _configure(self) -> None:
+        """Put this node's detector, classes and ground ranging into the camera's pipeline (once per change)."""
+        pipeline = self.camera.pipeline
+        choice: DetectorChoice = self.get_input("detector")
+        classes = tuple(self.get_input("classes") or ())
+        on_ground = bool(self.get_input("target_on_ground"))
+        wanted_classes = classes or pipeline.config.classes
+        if choice is not DetectorChoice.CAMERA and pipeline.detector_name != choice.value:
+            pipeline.use_detector(_shipped(choice.value), choice.value, wanted_classes, on_ground)
+        elif wanted_classes != pipeline.config.classes or on_ground != pipeline.config.target_on_ground:
+            pipeline.use_detector(pipeline.detector, pipeline.detector_name, wanted_classes, on_ground)
 
     def update(self) -> Status:
+        try:
+            self._configure()
+        except (ValueError, FileNotFoundError) as e:
+            self.feedback_message = f"detector: {e}"
+            return Status.FAILURE
         s = self.state
         if s.attitude is None or not np.all(np.isfinite(s.position_enu)):
             self.feedback_message = "no ownship attitude/position yet"

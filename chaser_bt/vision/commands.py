@@ -59,9 +59,10 @@ def _train(args: argparse.Namespace) -> int:
         print(f"error: --data {args.data}: no images/ folder (YOLO layout expected)", file=sys.stderr)
         return 2
     try:
-        out = train_detector(TrainConfig(args.data, args.out, steps=args.steps, batch=args.batch, seed=args.seed, threads=args.threads),
-                             resume=not args.fresh)
-    except ValueError as e:
+        out = train_detector(TrainConfig(args.data, args.out, steps=args.steps, batch=args.batch, seed=args.seed, threads=args.threads,
+                                         lr=args.lr, init_weights=args.init or "", small_box_px=args.small_box_px,
+                                         small_weight=args.small_weight), resume=not args.fresh)
+    except (ValueError, FileNotFoundError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     print(f"weights written to {out}")
@@ -100,6 +101,10 @@ def add_command(subparsers) -> None:
     t.add_argument("--seed", type=int, default=0)
     t.add_argument("--threads", type=int, default=1)
     t.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
+    t.add_argument("--lr", type=float, default=2e-3, help="peak learning rate (lower when fine-tuning)")
+    t.add_argument("--init", default=None, help="fine-tune from these weights (same classes) instead of from scratch")
+    t.add_argument("--small-box-px", type=float, default=0.0, help="over-sample images with a box narrower than this (416-scale px)")
+    t.add_argument("--small-weight", type=float, default=3.0, help="how many times more often such images are drawn")
     t.set_defaults(handler=_train)
     e = subparsers.add_parser("eval-detector", help="11-point AP@0.5, IoU, P/R/F1 at 0.25 and frames/s on a YOLO folder")
     e.add_argument("--data", required=True)

@@ -25,7 +25,9 @@ __all__ = ["TARGET_SPAN_M", "range_from_box", "RangeFilter"]
 
 # Effective width (m) of each target kind as its box sees it: the widest horizontal extent seen
 # side-on, averaged over yaw (rotor discs included): the median over 534 rendered training views (10-90 %: +-8 %).
-TARGET_SPAN_M: dict[str, float] = {"s1000": 1.42, "phantom": 0.575}
+# A person's box width varies far more (standing, lying, seen from any side: 10-90 % 0.42-1.81 m around
+# the median 0.68 m over 284 rendered search views): ground-plane ranging (PipelineConfig.target_on_ground) is better.
+TARGET_SPAN_M: dict[str, float] = {"s1000": 1.42, "phantom": 0.575, "person": 0.68}
 
 
 def box_angular_width(x0: float, x1: float, cx: float, fx: float) -> float:

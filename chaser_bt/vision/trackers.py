@@ -2,9 +2,13 @@
 
 The detector is too slow to run on every frame, so each detection seeds an OpenCV tracker that
 follows the box on the frames in between. Trackers cannot detect, so on every detector frame
-they are checked against the detections: a track that overlaps a detection is reseeded on it, a
-track that overlaps none is pruned (the paper's tracker drifting onto a bush), and a detection
-that no track overlaps starts a new track.
+they are checked against the detections: a track that overlaps a detection of a similar size is
+reseeded on it, a track that overlaps none is pruned (the paper's tracker drifting onto a bush),
+and a detection that no track overlaps starts a new track. With ``max_misses`` > 0 a confirmed
+track (two or more detector hits) may instead coast on its trackers through that many detector
+frames in a row that miss it, unless the detector contradicts it (sees something at least as
+confident elsewhere); a detection much larger than a track it covers (the detector boxing the
+target together with the road under it) neither reseeds it nor starts a track.
 
 Trackers in the installed OpenCV (opencv-contrib 5.0): cv2.TrackerKCF, TrackerCSRT, TrackerMIL
 (and the learned DaSiamRPN / Nano / Vit, which need model files we do not ship); cv2.legacy adds
@@ -61,6 +65,7 @@ class Track:
     size: tuple[float, float]
     hits: int = 1
     trackers: list = field(default_factory=list)
+    misses: int = 0  # detector frames in a row without a matching detection
 
     @property
     def centre(self) -> tuple[float, float]:
@@ -83,12 +88,17 @@ class TrackerBank:
         match_iou: overlap for a track and a detection to agree.
         min_window_px: smallest tracker window.
         max_tracks: most tracks kept (the highest scores).
+        max_misses: detector frames in a row a confirmed track may coast without a detection (0: prune at once).
+        max_size_ratio: largest ratio of the square roots of a detection's and a track's areas for them to agree.
     """
 
-    def __init__(self, kinds: Sequence[str] = ("mosse", "medianflow"), match_iou: float = 0.2, min_window_px: float = 32.0, max_tracks: int = 5) -> None:
+    def __init__(self, kinds: Sequence[str] = ("mosse", "medianflow"), match_iou: float = 0.2, min_window_px: float = 32.0, max_tracks: int = 5,
+                 max_misses: int = 0, max_size_ratio: float = 1.8) -> None:
         for k in kinds:
             make_tracker(k)
         self.kinds = tuple(kinds)
+        self.max_misses = max_misses
+        self.max_size_ratio = max_size_ratio
         self.match_iou = match_iou
         self.min_window_px = min_window_px
         self.max_tracks = max_tracks
@@ -112,14 +122,29 @@ class TrackerBank:
         """A detector frame: reseed agreeing tracks, prune the rest, start tracks on new detections."""
         kept: list[Track] = []
         used = set()
+        agree = np.zeros((len(self.tracks), len(detections)), bool)
+        covers = np.zeros((len(self.tracks), len(detections)), bool)
+        ious = np.zeros((len(self.tracks), len(detections)))
         if self.tracks and detections:
-            ious = iou_matrix(np.array([tr.box for tr in self.tracks]), np.array([d.box for d in detections]))
-        else:
-            ious = np.zeros((len(self.tracks), len(detections)))
+            tb = np.array([tr.box for tr in self.tracks], float)
+            db = np.array([d.box for d in detections], float)
+            ious = iou_matrix(tb, db)
+            ta = np.prod(np.clip(tb[:, 2:] - tb[:, :2], 1e-6, None), axis=1)
+            da = np.prod(np.clip(db[:, 2:] - db[:, :2], 1e-6, None), axis=1)
+            ratio = np.sqrt(da[None, :] / ta[:, None])
+            agree = (ious >= self.match_iou) & (ratio <= self.max_size_ratio) & (ratio >= 1.0 / self.max_size_ratio)
+            inter = np.prod(np.clip(np.minimum(tb[:, None, 2:], db[None, :, 2:]) - np.maximum(tb[:, None, :2], db[None, :, :2]), 0, None), axis=2)
+            covers = (inter >= 0.6 * ta[:, None]) & (ratio > self.max_size_ratio)
         for i, track in enumerate(self.tracks):
-            order = [j for j in np.argsort(-ious[i]) if j not in used and ious[i, j] >= self.match_iou] if len(detections) else []
+            order = [j for j in np.argsort(-ious[i]) if j not in used and agree[i, j]]
             if not order:
-                self.pruned += 1
+                # The detector contradicts the track when it is at least as sure of something else.
+                contradicted = any(d.score >= track.score for j, d in enumerate(detections) if not covers[i, j])
+                if track.hits >= 2 and track.misses < self.max_misses and not contradicted and track.trackers:
+                    track.misses += 1
+                    kept.append(track)
+                else:
+                    self.pruned += 1
                 continue
             j = int(order[0])
             used.add(j)
@@ -127,10 +152,12 @@ class TrackerBank:
             track.box, track.class_name, track.score, track.t_detected, track.t = d.box, d.class_name, d.score, t, t
             track.size = (d.box[2] - d.box[0], d.box[3] - d.box[1])
             track.hits += 1
+            track.misses = 0
             self._seed(frame, track)
             kept.append(track)
+        kept_ids = {id(tr) for tr in kept}
         for j, d in enumerate(detections):
-            if j in used:
+            if j in used or any(covers[i, j] and id(tr) in kept_ids for i, tr in enumerate(self.tracks)):
                 continue
             track = Track(self._next_id, d.box, d.class_name, d.score, t, t, (d.box[2] - d.box[0], d.box[3] - d.box[1]))
             self._next_id += 1

@@ -16,7 +16,7 @@ from scipy.spatial.transform import Rotation
 from chaser_bt.vision.camera import CameraModel
 from chaser_bt.vision.frame_source import Frame
 from sitl.camera.renderer import Lighting, Renderer, TargetPose, attitude_from_velocity
-from sitl.camera.scene import make_ground
+from sitl.camera.scene import GroundScene, make_ground
 
 __all__ = ["SimTarget", "SimulatorFrameSource"]
 
@@ -25,14 +25,15 @@ __all__ = ["SimTarget", "SimulatorFrameSource"]
 class SimTarget:
     """A target the camera can see: its kind and a path with ``position_enu(t)`` and ``velocity_enu(t)``
     (a ``sitl.targets`` path or an intruder); attitude from ``path.attitude(t)`` if it has one, else
-    from its velocity."""
+    from its velocity; ``variant`` picks the colour scheme of kinds that have several (a person's clothes)."""
 
     kind: str
     path: Any
+    variant: int = 0
 
     def pose(self, t: float) -> TargetPose:
         att = self.path.attitude(t) if hasattr(self.path, "attitude") else attitude_from_velocity(self.path.velocity_enu(t))
-        return TargetPose(self.kind, np.asarray(self.path.position_enu(t), float), att)
+        return TargetPose(self.kind, np.asarray(self.path.position_enu(t), float), att, self.variant)
 
 
 class SimulatorFrameSource:
@@ -45,16 +46,19 @@ class SimulatorFrameSource:
         seed: sensor-noise seed.
         lighting: scene lighting; ground_seed: the procedural ground's layout.
         exposure_s: shutter time for motion blur.
+        ground: a ground already made (shared between runs: making one takes a second or two);
+            None makes the one of ``ground_seed``.
     """
 
     def __init__(self, simulator: Any, camera_model: CameraModel, targets: Sequence[SimTarget], seed: int,
-                 lighting: Lighting = Lighting(), ground_seed: int = 7, exposure_s: float = 0.01) -> None:
+                 lighting: Lighting = Lighting(), ground_seed: int = 7, exposure_s: float = 0.01,
+                 ground: GroundScene | None = None) -> None:
         self.simulator = simulator
         self.camera = camera_model
         self.targets = list(targets)
         self.lighting = lighting
         self.exposure_s = exposure_s
-        self.renderer = Renderer(camera_model, make_ground(ground_seed), noise_seed=seed)
+        self.renderer = Renderer(camera_model, ground if ground is not None else make_ground(ground_seed), noise_seed=seed)
         self.rng = np.random.default_rng(seed)
         self._last: tuple[float, Rotation] | None = None
         self._index = 0

@@ -60,11 +60,13 @@ class Lighting:
 
 @dataclass(frozen=True)
 class TargetPose:
-    """A target to draw: its kind ("s1000", "phantom"), ENU position (m) and body (FLU) -> ENU attitude."""
+    """A target to draw: its kind ("s1000", "phantom", "person"), ENU position (m), body (FLU) -> ENU
+    attitude and colour ``variant`` (:func:`sitl.camera.models.model_for`)."""
 
     kind: str
     position_enu: np.ndarray
     attitude: Rotation = field(default_factory=Rotation.identity)
+    variant: int = 0
 
 
 @dataclass(frozen=True)
@@ -160,10 +162,10 @@ class Renderer:
         self._models = {}
         self._ground_mean = tuple(float(c) for c in scene.texture.reshape(-1, 3).mean(axis=0))
 
-    def _model(self, kind: str) -> _CompiledModel:
-        if kind not in self._models:
-            self._models[kind] = _compile(model_for(kind))
-        return self._models[kind]
+    def _model(self, kind: str, variant: int = 0) -> _CompiledModel:
+        if (kind, variant) not in self._models:
+            self._models[(kind, variant)] = _compile(model_for(kind, variant))
+        return self._models[(kind, variant)]
 
     def render(self, vehicle_pos_enu: np.ndarray, body_attitude: Rotation, targets: Sequence[TargetPose],
                lighting: Lighting, rng: np.random.Generator, blur_px: float = 0.0, blur_angle_rad: float = 0.0) -> RenderedFrame:
@@ -216,7 +218,7 @@ class Renderer:
         labels = []
         for i in order:
             t = targets[i]
-            m = self._model(t.kind)
+            m = self._model(t.kind, t.variant)
             rot = t.attitude.as_matrix()
             pos = np.asarray(t.position_enu, float)
 
@@ -229,7 +231,7 @@ class Renderer:
             rng_m = float(np.linalg.norm(centre_c))
             sc, rc_a, rc_b = to_cam(m.sphere_c), to_cam(m.rod_a), to_cam(m.rod_b)
             dc = to_cam(m.disc_pts).reshape(-1, _DISC_SIDES, 3)
-            if min(sc[:, 2].min(), rc_a[:, 2].min(), rc_b[:, 2].min(), dc[..., 2].min()) < 0.05:
+            if np.concatenate([sc[:, 2], rc_a[:, 2], rc_b[:, 2], dc[..., 2].ravel()]).min() < 0.05:
                 continue  # part of the target is behind the lens: too close to draw
 
             def px(c: np.ndarray) -> np.ndarray:

@@ -10,7 +10,7 @@ from sitl.camera.dataset import CLASSES, SPLITS, read_yolo_labels, write_dataset
 
 
 def test_written_dataset_round_trips_its_labels(tmp_path):
-    out = write_dataset(tmp_path / "d", 6, seed=3, split="heldout")
+    out = write_dataset(tmp_path / "d", 6, seed=3, split="heldout", ground_size_px=512)
     assert (out / "classes.txt").read_text().split() == list(CLASSES)
     images = sorted((out / "images").glob("*.jpg"))
     assert len(images) == 6
@@ -49,3 +49,32 @@ def test_flip_letterbox_and_hsv():
     lb, scale, (px, py) = letterbox(img, 64)
     assert lb.shape == (64, 64, 3) and scale == pytest.approx(0.32) and (px, py) == (0, 16)
     assert hsv_jitter(img, np.random.default_rng(0)).shape == img.shape
+
+
+def test_person_dataset_puts_people_on_the_ground_with_their_own_class_list(tmp_path):
+    from sitl.camera.dataset import PERSON_CLASSES, DatasetRenderer
+
+    out = write_dataset(tmp_path / "p", 6, seed=2, split="train", kinds=PERSON_CLASSES, ground_size_px=256)
+    assert (out / "classes.txt").read_text().split() == ["person"]
+    boxes = np.concatenate([read_yolo_labels(p, 640, 480) for p in sorted((out / "labels").glob("*.txt"))])
+    assert len(boxes) >= 4 and set(boxes[:, 0].astype(int)) == {0}
+    rng = np.random.default_rng(0)
+    data = DatasetRenderer("train", ground_size_px=256, kinds=PERSON_CLASSES)
+    frame = data.sample(rng)
+    assert all(lab.kind == "person" for lab in frame.labels)
+    with pytest.raises(ValueError, match="known"):
+        DatasetRenderer("train", kinds=("person", "yeti"))
+
+
+def test_follow_views_put_one_target_near_the_image_centre():
+    from sitl.camera.dataset import DatasetRenderer
+
+    data = DatasetRenderer("train", ground_size_px=256, follow_share=1.0)
+    rng = np.random.default_rng(1)
+    for _ in range(4):
+        (lab,) = data.sample(rng).labels
+        cx, cy = lab.centre_px
+        assert abs(cx - 320) < 0.25 * 640 and abs(cy - 240) < 0.25 * 480  # nose on it within a few degrees
+        assert 8 <= lab.box[2] - lab.box[0] <= 200
+    with pytest.raises(ValueError, match="follow_share"):
+        DatasetRenderer("train", ground_size_px=256, follow_share=1.5)

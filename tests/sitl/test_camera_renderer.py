@@ -80,3 +80,35 @@ def test_motion_blur_and_jpeg_change_the_image_but_not_the_labels(renderer):
     blurred = renderer.render(pos, att, tg, Lighting(noise_sigma=0, jpeg_quality=50), np.random.default_rng(0), blur_px=9)
     assert sharp.labels == blurred.labels
     assert np.abs(sharp.image.astype(int) - blurred.image.astype(int)).mean() > 0.5
+
+
+def test_a_standing_person_is_boxed_to_its_height_and_shoulder_width(renderer):
+    from sitl.camera.models import PERSON_HEIGHT_M
+
+    d = 20.0
+    feet = np.array([d, 0.0, 30.0 - 0.88])  # the body's middle at the (level) camera's height
+    frame = renderer.render(np.array([0.0, 0.0, 30.0]), Rotation.identity(), [TargetPose("person", feet)], CLEAN, np.random.default_rng(0))
+    (lab,) = frame.labels
+    fx, fy = CAM.focal_px
+    x0, y0, x1, y1 = lab.box
+    # Head top 1.765 m, shoe bottom -0.005 m; arms out to +-0.31 m seen from behind.
+    assert (y1 - y0) == pytest.approx(1.77 * fy / d, rel=0.05) and 1.77 == pytest.approx(PERSON_HEIGHT_M, abs=0.03)
+    assert (x1 - x0) == pytest.approx(0.62 * fx / d, rel=0.1)
+    assert lab.kind == "person" and 0.5 * (x0 + x1) == pytest.approx(320.0, abs=0.5)
+
+
+def test_a_lying_person_seen_from_above_is_long_along_its_body_and_colour_variants_differ(renderer):
+    down = Rotation.from_euler("ZY", [0.0, math.pi / 2])  # nose straight down: image right is ENU south
+    lying = Rotation.from_euler("ZX", [0.0, math.pi / 2])  # head towards ENU south
+    pos = np.array([0.0, 0.0, 30.0])
+    frames = [renderer.render(pos, down, [TargetPose("person", np.array([0.0, 0.0, 0.16]), lying, v)], CLEAN, np.random.default_rng(0))
+              for v in (0, 1)]
+    fx, fy = CAM.focal_px
+    (lab,) = frames[0].labels
+    x0, y0, x1, y1 = lab.box
+    assert (x1 - x0) == pytest.approx(1.77 * fx / 29.84, rel=0.1)  # along the body, 29.84 m below
+    assert (y1 - y0) < 0.7 * fy / 29.5 and (y1 - y0) < 0.5 * (x1 - x0)
+    assert frames[0].labels == frames[1].labels
+    assert not np.array_equal(frames[0].image, frames[1].image)  # the clothes differ
+    with pytest.raises(ValueError, match="known"):
+        model_for("yeti", 3)

@@ -79,3 +79,47 @@ def test_onnx_backend_gives_the_torch_detections():
     for x, y in zip(a, b):
         assert x.class_id == y.class_id and x.score == pytest.approx(y.score, abs=1e-4)
         assert np.allclose(x.box, y.box, atol=1e-2)
+
+
+def test_shipped_person_detector_finds_people_on_a_fresh_heldout_set():
+    from chaser_bt.vision.detector.inference import SHIPPED_WEIGHTS, shipped_detector
+    from sitl.camera.dataset import PERSON_CLASSES, DatasetRenderer, frame_boxes
+
+    path = SHIPPED_WEIGHTS["person_yolo"]
+    assert path.exists() and path.stat().st_size < 4_000_000
+    det = shipped_detector("person_yolo", conf_threshold=0.005)
+    assert det.class_names == PERSON_CLASSES and det.backend in ("torch", "onnx")
+    data = DatasetRenderer("heldout", ground_size_px=1024, kinds=PERSON_CLASSES)
+    rng = np.random.default_rng(20251122)
+    frames = [data.sample(rng) for _ in range(40)]
+    preds = [[(d.box, d.score, d.class_id) for d in det(f.image)] for f in frames]
+    m = evaluate_detections(preds, [frame_boxes(f, PERSON_CLASSES) for f in frames], 1)
+    assert m.ap50 >= 0.6, m
+    with pytest.raises(ValueError, match="shipped"):
+        shipped_detector("yolo9000")
+
+
+def test_small_box_oversampling_weights_by_hand():
+    from chaser_bt.vision.detector.train import sampling_weights
+
+    boxes = [np.array([[0, 0.0, 0.0, 8.0, 8.0]]), np.array([[0, 0.0, 0.0, 30.0, 30.0], [1, 5.0, 5.0, 11.0, 40.0]]),
+             np.zeros((0, 5)), np.array([[0, 0.0, 0.0, 20.0, 5.0]])]
+    p = sampling_weights(boxes, small_box_px=10.0, small_weight=3.0)
+    assert p == pytest.approx(np.array([3.0, 3.0, 1.0, 1.0]) / 8.0)  # 8 px and 6 px wide boxes are small; 20 px is not
+    assert sampling_weights(boxes, 0.0, 3.0) is None
+
+
+def test_fine_tuning_refuses_weights_for_other_classes(tmp_path):
+    import cv2
+
+    from chaser_bt.vision.detector.train import TrainConfig, train_detector
+
+    data = tmp_path / "p"
+    (data / "images").mkdir(parents=True)
+    (data / "labels").mkdir()
+    (data / "classes.txt").write_text("person\n")
+    cv2.imwrite(str(data / "images" / "0.jpg"), np.zeros((48, 64, 3), np.uint8))
+    (data / "labels" / "0.txt").write_text("0 0.5 0.5 0.2 0.4\n")
+    with pytest.raises(ValueError, match="classes"):
+        train_detector(TrainConfig(str(data), str(tmp_path / "w.pt"), steps=1, init_weights=str(DEFAULT_WEIGHTS)), progress=None)
+    assert not (tmp_path / "w.pt").exists()

@@ -18,6 +18,9 @@ def test_range_from_a_centred_box_is_span_over_twice_the_half_angle_tangent():
 
 def test_known_spans_cover_every_rendered_kind_and_lie_near_the_model_size():
     for kind, model in TARGET_MODELS.items():
+        if kind == "person":  # standing (shoulders) to lying (full length): the median view lies between
+            assert model.span_m < TARGET_SPAN_M[kind] < model.height_m
+            continue
         assert 0.8 * model.span_m < TARGET_SPAN_M[kind] < 1.1 * model.span_m
 
 

@@ -57,3 +57,51 @@ def test_agreeing_detection_reseeds_the_track_and_keeps_its_id():
 def test_unknown_tracker_kind_is_refused():
     with pytest.raises(ValueError, match="available"):
         TrackerBank(["goturn"])
+
+
+def _confirmed(bank: TrackerBank, x=100, y=100) -> int:
+    bank.correct(_scene(x, y), [_det(x, y)], 0.0)
+    bank.correct(_scene(x, y), [_det(x, y)], 0.1)
+    assert bank.tracks[0].hits == 2
+    return bank.tracks[0].track_id
+
+
+def test_a_confirmed_track_coasts_through_max_misses_detector_frames_then_is_pruned():
+    bank = TrackerBank(["mosse"], max_misses=2)
+    tid = _confirmed(bank)
+    for k in (1, 2):
+        tracks = bank.correct(_scene(100, 100), [], 0.1 + 0.1 * k)
+        assert [t.track_id for t in tracks] == [tid] and tracks[0].misses == k
+        assert tracks[0].t_detected == 0.1  # coasting is not a detection
+    assert bank.correct(_scene(100, 100), [], 0.4) == [] and bank.pruned == 1
+    # A match resets the count.
+    tid = _confirmed(bank)
+    bank.correct(_scene(100, 100), [], 0.2)
+    bank.correct(_scene(100, 100), [_det(101, 100)], 0.3)
+    assert bank.tracks[0].track_id == tid and bank.tracks[0].misses == 0
+
+
+def test_an_unconfirmed_or_contradicted_track_does_not_coast():
+    bank = TrackerBank(["mosse"], max_misses=2)
+    bank.correct(_scene(100, 100), [_det(100, 100)], 0.0)
+    assert bank.correct(_scene(100, 100), [], 0.1) == []  # one hit only
+    tid = _confirmed(bank)
+    sure = Detection((250.0, 30.0, 270.0, 50.0), 0.95, 0, "s1000")  # surer than the track's 0.9, elsewhere
+    assert [t.track_id for t in bank.correct(_scene(100, 100), [sure], 0.2)] != [tid]
+    tid = _confirmed(bank)
+    weak = Detection((250.0, 30.0, 270.0, 50.0), 0.4, 0, "s1000")
+    ids = [t.track_id for t in bank.correct(_scene(100, 100), [weak], 0.2)]
+    assert tid in ids and len(ids) == 2  # the weak one starts its own track, the confirmed one coasts
+
+
+def test_an_oversized_detection_around_a_track_neither_reseeds_it_nor_starts_a_track():
+    bank = TrackerBank(["mosse"], max_misses=2)
+    tid = _confirmed(bank)
+    big = Detection((70.0, 75.0, 160.0, 150.0), 0.5, 0, "s1000")  # the target and its surroundings: 4.1x the width
+    tracks = bank.correct(_scene(100, 100), [big], 0.2)
+    assert [t.track_id for t in tracks] == [tid] and tracks[0].misses == 1
+    assert tracks[0].size == (20.0, 20.0) and tracks[0].t_detected == 0.1
+    # Without coasting (the paper's rule) the same detection replaces the track.
+    bank0 = TrackerBank(["mosse"])
+    tid0 = _confirmed(bank0)
+    assert [t.track_id for t in bank0.correct(_scene(100, 100), [big], 0.2)] not in ([], [tid0])

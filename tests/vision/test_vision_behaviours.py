@@ -41,7 +41,7 @@ class _Detector:
 
 def _tree(body: str, detector, clock):
     tree = load_tree_text("version: 1\ntrees:\n  Test:\n    " + body + "\n", source="<test>")
-    sensor = CameraSensor(_Source(), VisionPipeline(CAM, detector, PipelineConfig(detect_every=1, tracker_kinds=())))
+    sensor = CameraSensor(_Source(), VisionPipeline(CAM, detector, PipelineConfig(detect_every=1, tracker_kinds=(), confirm_hits=1)))
     bt = py_trees.trees.BehaviourTree(tree.root)
     bt.setup(link=object(), clock=clock, camera=sensor)
     return bt
@@ -115,3 +115,78 @@ def test_eval_detector_prints_model_card_metrics_on_a_rendered_folder(tmp_path, 
     assert args.handler(args) == 0
     row = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert row["images"] == 5 and set(row) >= {"ap50", "iou", "precision", "recall", "f1", "fps"}
+
+
+def _ground_state():
+    # 20 m up, pitched 30 deg nose-down: the camera (tilt 0) looks at the ground 20 / tan(30 deg) ahead.
+    att = Rotation.from_euler("ZY", [0.0, np.radians(30.0)])
+    return VehicleState(position_enu=np.array([0.0, 0.0, 20.0]), velocity_enu=np.zeros(3), attitude=att)
+
+
+def test_classes_port_filters_detections_and_ground_ranging_meets_the_ground():
+    clock = ManualClock(3.0)
+    bb = py_trees.blackboard.Client(name="test")
+    bb.register_key("/vehicle/state", access=py_trees.common.Access.WRITE)
+    bb.register_key("/target/estimate", access=py_trees.common.Access.READ)
+    bb.set("/vehicle/state", _ground_state())
+    det = _Detector()  # class "s1000" at the image centre
+    wrong = _tree("VisionPipeline: {classes: [person]}", det, clock)
+    wrong.tick()
+    assert wrong.root.status == Status.FAILURE and wrong.root.camera.pipeline.config.classes == ("person",)
+    ground = _tree("VisionPipeline: {classes: [s1000, person], target_on_ground: true}", det, clock)
+    ground.tick()
+    assert ground.root.status == Status.SUCCESS
+    est = bb.get("/target/estimate")
+    # The optical axis meets z = 0 at 20 / sin(30 deg) = 40 m, at (34.64, 0, 0).
+    assert est.range_m == pytest.approx(40.0, rel=1e-3)
+    assert est.position_enu == pytest.approx([20.0 / np.tan(np.radians(30.0)), 0.0, 0.0], abs=0.05)
+
+
+def test_detector_port_swaps_in_a_shipped_detector_and_rejects_unknown_names():
+    from chaser_bt.vision.detector.inference import Detector
+
+    clock = ManualClock(1.0)
+    bb = py_trees.blackboard.Client(name="test")
+    bb.register_key("/vehicle/state", access=py_trees.common.Access.WRITE)
+    bb.set("/vehicle/state", _state())
+    vision = _tree("VisionPipeline: {detector: tiny_yolo}", _Detector(), clock)
+    vision.tick()  # a blank frame: no target, but the shipped detector now runs
+    pipeline = vision.root.camera.pipeline
+    assert isinstance(pipeline.detector, Detector) and pipeline.detector_name == "tiny_yolo"
+    assert pipeline.detector.class_names == ("s1000", "phantom")
+    with pytest.raises(Exception, match="detector"):
+        load_tree_text("version: 1\ntrees:\n  Test:\n    VisionPipeline: {detector: yolo9000}\n", source="<test>")
+
+
+def test_ground_range_is_height_over_the_downward_component():
+    from chaser_bt.vision.pipeline import ground_range
+
+    b = np.array([3.0, 4.0, -5.0]) / np.sqrt(50.0)
+    assert ground_range(np.array([1.0, 2.0, 10.0]), b) == pytest.approx(10.0 * np.sqrt(50.0) / 5.0)
+    assert ground_range(np.array([0.0, 0.0, 10.0]), np.array([1.0, 0.0, 0.0])) is None
+    assert ground_range(np.array([0.0, 0.0, -1.0]), np.array([0.0, 0.0, -1.0])) is None
+
+
+def test_setup_refuses_a_shipped_detector_whose_weights_are_missing(monkeypatch, tmp_path):
+    from behaviours import vision as vision_behaviours
+    from chaser_bt.vision.detector import inference
+
+    monkeypatch.setitem(inference.SHIPPED_WEIGHTS, "person_yolo", tmp_path / "absent.pt")
+    vision_behaviours._shipped.cache_clear()
+    try:
+        with pytest.raises(FileNotFoundError, match="absent.pt"):
+            _tree("VisionPipeline: {detector: person_yolo}", _Detector(), ManualClock(0.0))
+    finally:
+        vision_behaviours._shipped.cache_clear()
+
+
+def test_detector_port_person_yolo_runs_the_person_model():
+    clock = ManualClock(1.0)
+    bb = py_trees.blackboard.Client(name="test")
+    bb.register_key("/vehicle/state", access=py_trees.common.Access.WRITE)
+    bb.set("/vehicle/state", _state())
+    vision = _tree("VisionPipeline: {detector: person_yolo, classes: [person], target_on_ground: true}", _Detector(), clock)
+    vision.tick()
+    pipeline = vision.root.camera.pipeline
+    assert pipeline.detector_name == "person_yolo" and pipeline.detector.class_names == ("person",)
+    assert pipeline.config.classes == ("person",) and pipeline.config.target_on_ground

@@ -1,9 +1,10 @@
 """Run the trained detector on BGR frames: letterbox, forward, decode, confidence filter, NMS.
 
 The default weights ship in ``chaser_bt/vision/weights/tiny_yolo.pt`` and load without any
-download. Torch uses ``threads`` intra-op threads (1 measured fastest on the shared 2-core CPU:
-see docs/vision.md). An ONNX copy can be exported with :func:`export_onnx`; onnxruntime is used
-only when it is installed and asked for.
+download; :data:`SHIPPED_WEIGHTS` names every shipped model (``tiny_yolo``: s1000 and phantom;
+``person_yolo``: person, for search and rescue) and :func:`shipped_detector` loads one by name. Torch uses ``threads`` intra-op threads (1 measured fastest on the shared 2-core CPU:
+see docs/vision.md). An ONNX copy can be exported with :func:`export_onnx`; with ``backend="auto"`` onnxruntime
+runs it when it is installed and the copy beside the weights is not older than them.
 """
 
 from __future__ import annotations
@@ -17,10 +18,13 @@ from chaser_bt.vision.detection import Detection
 from chaser_bt.vision.detector.augment import letterbox
 from chaser_bt.vision.detector.model import DetectorConfig, TinyYolo, decode
 
-__all__ = ["Detection", "Detector", "DEFAULT_WEIGHTS", "DEFAULT_ONNX", "load_model", "nms", "export_onnx"]
+__all__ = ["Detection", "Detector", "DEFAULT_WEIGHTS", "DEFAULT_ONNX", "SHIPPED_WEIGHTS", "shipped_detector", "load_model", "nms", "export_onnx"]
 
-DEFAULT_WEIGHTS = Path(__file__).resolve().parent.parent / "weights" / "tiny_yolo.pt"
+_WEIGHTS_DIR = Path(__file__).resolve().parent.parent / "weights"
+DEFAULT_WEIGHTS = _WEIGHTS_DIR / "tiny_yolo.pt"
 DEFAULT_ONNX = DEFAULT_WEIGHTS.with_suffix(".onnx")
+#: The detectors shipped in the package, by the name a tree uses.
+SHIPPED_WEIGHTS: dict[str, Path] = {"tiny_yolo": DEFAULT_WEIGHTS, "person_yolo": _WEIGHTS_DIR / "person_yolo.pt"}
 _MAX_NMS = 300
 
 
@@ -62,18 +66,22 @@ class Detector:
         threads: torch (process-wide) or onnxruntime intra-op threads.
         multi_label: report every class above the threshold for a box, not just the best (for AP).
         backend: "torch"; "onnx" to run ``onnx_path`` with onnxruntime (optional dependency, measured
-            faster on this CPU); "auto" = onnx when onnxruntime is installed and the file exists.
+            faster on this CPU); "auto" = onnx when onnxruntime is installed and ``onnx_path`` exists
+            and is not older than ``weights``.
+        onnx_path: the ONNX copy (default: beside ``weights`` with the suffix .onnx).
     """
 
     def __init__(self, weights: str | Path = DEFAULT_WEIGHTS, image_size: int = 416, conf_threshold: float = 0.25,
                  iou_threshold: float = 0.45, threads: int = 1, max_detections: int = 20, backend: str = "auto",
-                 onnx_path: str | Path = DEFAULT_ONNX, multi_label: bool = False) -> None:
+                 onnx_path: str | Path | None = None, multi_label: bool = False) -> None:
         if image_size % 32:
             raise ValueError(f"image_size must be a multiple of 32, got {image_size}")
         if backend not in ("torch", "onnx", "auto"):
             raise ValueError(f"backend must be 'torch', 'onnx' or 'auto', got {backend!r}")
+        onnx_path = Path(weights).with_suffix(".onnx") if onnx_path is None else Path(onnx_path)
         if backend == "auto":
-            backend = "onnx" if _have_onnxruntime() and Path(onnx_path).exists() and Path(weights).resolve() == DEFAULT_WEIGHTS else "torch"
+            fresh = onnx_path.exists() and Path(weights).exists() and onnx_path.stat().st_mtime >= Path(weights).stat().st_mtime - 1.0
+            backend = "onnx" if fresh and _have_onnxruntime() else "torch"
         self.backend = backend
         torch.set_num_threads(threads)
         self.model = load_model(weights)
@@ -119,6 +127,18 @@ class Detector:
             b = np.clip(b, [0, 0, 0, 0], [w, h, w, h])
             dets.append(Detection((float(b[0]), float(b[1]), float(b[2]), float(b[3])), float(score[i]), int(cls[i]), self.class_names[int(cls[i])]))
         return dets
+
+
+def shipped_detector(name: str, **kwargs) -> Detector:
+    """The shipped detector called ``name`` (a key of :data:`SHIPPED_WEIGHTS`); ``kwargs`` go to :class:`Detector`.
+
+    Raises:
+        ValueError: an unknown name (the message lists the known ones).
+        FileNotFoundError: the weights are not in the package.
+    """
+    if name not in SHIPPED_WEIGHTS:
+        raise ValueError(f"unknown detector {name!r}; shipped: {sorted(SHIPPED_WEIGHTS)}")
+    return Detector(SHIPPED_WEIGHTS[name], **kwargs)
 
 
 def _have_onnxruntime() -> bool:

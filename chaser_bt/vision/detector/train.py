@@ -4,7 +4,9 @@ standard schedule and augmentation). Seeded, resumable from its checkpoint, with
 Images are letterboxed once to the detector scale (``image_size`` / longest side) and kept in memory;
 each batch is made of mosaics (4 images, random scale) with HSV jitter and horizontal flips.
 Optimiser: AdamW with a linear warm-up and a cosine decay; an exponential moving average of the
-weights (YOLOv5) is what gets saved.
+weights (YOLOv5) is what gets saved. ``init_weights`` fine-tunes from a saved model (same classes)
+instead of starting from scratch; ``small_box_px`` > 0 draws the images holding a box narrower than
+that ``small_weight`` times as often (small targets are the common misses).
 """
 
 from __future__ import annotations
@@ -47,6 +49,9 @@ class TrainConfig:
     threads: int = 1
     checkpoint_every: int = 50
     ema_decay: float = 0.995
+    init_weights: str = ""
+    small_box_px: float = 0.0
+    small_weight: float = 3.0
 
 
 def load_yolo_folder(data_dir: str | Path, image_size: int) -> tuple[list[np.ndarray], list[np.ndarray], tuple[str, ...]]:
@@ -78,10 +83,19 @@ def load_yolo_folder(data_dir: str | Path, image_size: int) -> tuple[list[np.nda
     return images, boxes, classes
 
 
-def _batch(images, boxes, cfg: TrainConfig, rng: np.random.Generator) -> tuple[torch.Tensor, list[torch.Tensor]]:
+def sampling_weights(boxes: list[np.ndarray], small_box_px: float, small_weight: float) -> np.ndarray | None:
+    """Per-image draw probabilities: ``small_weight`` for images with a box narrower than ``small_box_px``
+    (in the letterboxed image), 1 for the rest; None (uniform) when ``small_box_px`` is 0."""
+    if small_box_px <= 0:
+        return None
+    w = np.array([small_weight if len(b) and float(np.min(b[:, 3] - b[:, 1])) < small_box_px else 1.0 for b in boxes])
+    return w / w.sum()
+
+
+def _batch(images, boxes, cfg: TrainConfig, rng: np.random.Generator, p: np.ndarray | None = None) -> tuple[torch.Tensor, list[torch.Tensor]]:
     xs, ts = [], []
     for _ in range(cfg.batch):
-        idx = rng.integers(len(images), size=4)
+        idx = rng.integers(len(images), size=4) if p is None else rng.choice(len(images), size=4, p=p)
         img, b = mosaic([images[i] for i in idx], [boxes[i] for i in idx], cfg.crop, rng, cfg.scale_range, focus=0.8)
         img = hsv_jitter(img, rng)
         if rng.random() < 0.5:
@@ -100,6 +114,14 @@ def train_detector(cfg: TrainConfig, resume: bool = True, progress=sys.stderr) -
     images, boxes, classes = load_yolo_folder(cfg.data_dir, cfg.image_size)
     det_cfg = DetectorConfig(num_classes=len(classes), class_names=classes)
     model = TinyYolo(det_cfg)
+    if cfg.init_weights:
+        from chaser_bt.vision.detector.inference import load_model
+
+        start = load_model(cfg.init_weights)
+        if start.config.class_names != classes:
+            raise ValueError(f"init weights {cfg.init_weights}: classes {start.config.class_names} differ from the data's {classes}")
+        model.load_state_dict(start.state_dict())
+    p_small = sampling_weights(boxes, cfg.small_box_px, cfg.small_weight)
     ema = copy.deepcopy(model).eval()
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     out = Path(cfg.out_path)
@@ -122,7 +144,7 @@ def train_detector(cfg: TrainConfig, resume: bool = True, progress=sys.stderr) -
         lr = cfg.lr * (step + 1) / warm if step < warm else cfg.lr * 0.5 * (1 + math.cos(math.pi * (step - warm) / max(cfg.steps - warm, 1)))
         for g in opt.param_groups:
             g["lr"] = lr
-        x, ts = _batch(images, boxes, cfg, rng)
+        x, ts = _batch(images, boxes, cfg, rng, p_small)
         loss, parts = detection_loss(model(x), ts, det_cfg.stride)
         opt.zero_grad()
         loss.backward()
