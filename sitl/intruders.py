@@ -269,6 +269,7 @@ class IntruderSpec:
     start_s: float = 0.0
     telemetry_hz: float = 5.0
     limits: IntruderLimits = IntruderLimits()
+    airframe: str = "phantom"  # what the camera renders (sitl/camera/models.py): phantom or s1000
 
     def make_pilot(self, rng: np.random.Generator) -> Pilot:
         p = dict(self.params)

@@ -25,6 +25,8 @@ from sitl.params import ParamStore
 from sitl.physics import WindParams
 from sitl.radar.config import RadarClutter, RadarConfig, RadarFailureRates
 from sitl.intruders import TRAJECTORY_KINDS, IntruderLimits, IntruderSpec
+
+INTRUDER_AIRFRAMES = ("phantom", "s1000")  # drone models the rendered camera draws (sitl/camera/models.py)
 from sitl.camera.models import TARGET_MODELS
 from sitl.targets import CirclePath, StaticPoint, TargetPath, WaypointPath
 
@@ -574,7 +576,7 @@ class _Parser:
         out, names, sysids = [], set(taken), {vehicle_sysid}
         for i, item in enumerate(d):
             path = f"intruders[{i}]"
-            m = self.mapping(item, path, ("name", "sysid", "start_enu_m", "start_s", "telemetry_hz", "limits")
+            m = self.mapping(item, path, ("name", "sysid", "start_enu_m", "start_s", "telemetry_hz", "limits", "airframe")
                              + TRAJECTORY_KINDS)
             name = m.get("name")
             if not isinstance(name, str) or not name or name == "ownship" or name in names:
@@ -597,8 +599,11 @@ class _Parser:
             lim = self.mapping(m.get("limits"), f"{path}.limits", tuple(f.name for f in dataclasses.fields(IntruderLimits)))
             dl = IntruderLimits()
             limits = IntruderLimits(**{k: self._positive(lim, k, f"{path}.limits", getattr(dl, k)) for k in dl.__dict__})
+            airframe = m.get("airframe", "phantom")
+            if airframe not in INTRUDER_AIRFRAMES:
+                raise self.fail(f"{path}.airframe", "one of " + ", ".join(INTRUDER_AIRFRAMES), airframe)
             out.append(IntruderSpec(name, sysid, start, kind, params, self.number(m, "start_s", path, 0.0, 0.0),
-                                    self._positive(m, "telemetry_hz", path, 5.0), limits))
+                                    self._positive(m, "telemetry_hz", path, 5.0), limits, airframe))
         return tuple(out)
 
     def _trajectory(self, kind: str, d: Any, path: str, start: tuple[float, float, float]) -> dict:

@@ -274,7 +274,7 @@ def build_sensors(vehicle: InProcessVehicle, options: SensorOptions, seed: int) 
         model = CameraModel(width_px=w, height_px=h)
         targets: list[tuple[SimTarget, Any]] = []
         if options.camera_detection:
-            targets += [(SimTarget("phantom", intruder), _always) for intruder in sim.intruders]
+            targets += [(SimTarget(intruder.spec.airframe, intruder), _always) for intruder in sim.intruders]
             targets += [(SimTarget(tg.kind, tg.path, k), tg.present) for k, tg in enumerate(scenario.targets)]
         out.frame_source = ScenarioFrameSource(sim, model, targets, seed)
         out.camera = CameraSensor(out.frame_source, VisionPipeline(model, _shipped_detector))

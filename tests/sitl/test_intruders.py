@@ -156,6 +156,7 @@ def test_radar_sees_intruders():
     (lambda i: i.update(circle={"radius_m": -3}), "intruders[0].circle.radius_m"),
     (lambda i: i.update(limits={"speed_h_mps": 0}), "intruders[0].limits.speed_h_mps"),
     (lambda i: i.update(circle={"clockwise": "yes"}), "intruders[0].circle.clockwise"),
+    (lambda i: i.update(airframe="blimp"), "intruders[0].airframe"),
 ])
 def test_bad_intruders_are_reported_with_their_key_path(edit, where):
     doc = {**SCEN, "intruders": [dict(SCEN["intruders"][0])]}
@@ -181,3 +182,9 @@ def test_the_shipped_follow_scenario_loads():
     from sitl.scenario import load_scenario
     sc = load_scenario(Path(__file__).resolve().parents[2] / "sitl" / "scenarios" / "follow_rectangle.yaml")
     assert sc.intruders[0].trajectory == "rectangle" and sc.intruders[0].params["pause_s"] == 8.0
+
+
+def test_intruder_airframe_defaults_to_the_phantom_and_takes_the_s1000():
+    assert Scenario.from_dict(SCEN, source="<x>").intruders[0].airframe == "phantom"
+    doc = {**SCEN, "intruders": [dict(SCEN["intruders"][0], airframe="s1000")]}
+    assert Scenario.from_dict(doc, source="<x>").intruders[0].airframe == "s1000"
