@@ -8,8 +8,8 @@ real-time server paces it against the wall clock from outside).
 
 When the scenario has a ``radar:`` section the simulator also runs the ground radar
 (:mod:`sitl.radar`): at each radar scan it shows the radar the vehicle (while airborne, as
-``ownship``) and the scenario's scripted ``targets``, encodes the scan as one JSON datagram and
-sends it over UDP (``radar.udp_port``) and to every in-process consumer
+``ownship``) and the scenario's scripted ``targets`` (not people: ``RADAR_BLIND_KINDS``), encodes the
+scan as one JSON datagram and sends it over UDP (``radar.udp_port``) and to every in-process consumer
 (:meth:`Simulator.add_radar_consumer`). The radar has its own random stream, so adding one does
 not change the vehicle's noise.
 
@@ -66,7 +66,7 @@ class Simulator:
     def __init__(self, scenario: Scenario, seed: int, *, physics_hz: float | None = None) -> None:
         if physics_hz is not None and not physics_hz > 0.0:
             raise ValueError(f"physics_hz must be > 0, got {physics_hz}")
-        self.scenario = scenario
+        self.scenario = scenario.placed(seed)  # scattered static targets (a person) put where this seed says
         self.dt = PHYSICS_DT if physics_hz is None else 1.0 / physics_hz
         self.autopilot = Autopilot(scenario, np.random.default_rng(seed))
         self.endpoint = MavlinkEndpoint(self.autopilot, start_unix_s=scenario.start_unix_s)
@@ -120,7 +120,7 @@ class Simulator:
         if not truth.on_ground:
             objs["ownship"] = (np.asarray(truth.pos_enu, float), np.asarray(truth.vel_enu, float))
         for tgt in self.scenario.targets:
-            if tgt.present(t):
+            if tgt.present(t) and tgt.radar_visible:
                 objs[tgt.name] = (tgt.path.position_enu(t), tgt.path.velocity_enu(t))
         for intruder in self.intruders:
             objs[intruder.name] = (intruder.pos.copy(), intruder.vel.copy())

@@ -5,7 +5,8 @@ m/s in the scenario's frame, ``t`` simulator seconds). Three shapes cover the pa
 circles (:class:`CirclePath`), polylines flown at constant speed (:class:`WaypointPath`, with
 :func:`circle_points` and :func:`downrange_and_back_points` to build them) and a schedule that
 switches between paths at given times (:class:`ScheduledPath`). Full intruders that fly physics
-and send their own MAVLink implement the same protocol.
+and send their own MAVLink implement the same protocol. :class:`StaticPoint` is a target that does
+not move (a person waiting for rescue), placed at random around its nominal point per seed.
 """
 
 from __future__ import annotations
@@ -15,8 +16,9 @@ from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
-__all__ = ["TargetPath", "CirclePath", "WaypointPath", "ScheduledPath", "circle_points",
+__all__ = ["TargetPath", "CirclePath", "WaypointPath", "ScheduledPath", "StaticPoint", "circle_points",
            "downrange_and_back_points"]
 
 
@@ -135,6 +137,52 @@ class ScheduledPath:
 
     def velocity_enu(self, t: float) -> np.ndarray:
         return self._path(t).velocity_enu(t)
+
+
+#: How far a lying person's body origin is above the ground: the torso's half-depth (m).
+LYING_LIFT_M = 0.16
+
+
+@dataclass(frozen=True)
+class StaticPoint:
+    """A target that stays at ``position_enu`` (a person on the ground: feet at the point).
+
+    ``scatter_m`` > 0 marks the point as nominal: :meth:`placed` draws the actual point uniformly
+    in the horizontal disc of that radius around it (a seeded campaign puts the person somewhere
+    else each run). ``heading_rad`` is the ENU direction the body's x axis faces; ``lying`` rolls
+    the body 90 deg onto the ground (the camera models stand up body +z), its origin raised by the
+    torso's half-depth (:data:`LYING_LIFT_M`, as the person datasets draw it) so it lies on the ground.
+    """
+
+    position: tuple[float, float, float]
+    scatter_m: float = 0.0
+    heading_rad: float = 0.0
+    lying: bool = False
+
+    def __post_init__(self) -> None:
+        if len(self.position) != 3 or not all(math.isfinite(x) for x in self.position):
+            raise ValueError(f"a static point needs 3 finite ENU coordinates, got {self.position!r}")
+        if not (math.isfinite(self.scatter_m) and self.scatter_m >= 0.0):
+            raise ValueError(f"scatter_m must be >= 0, got {self.scatter_m}")
+
+    def placed(self, rng: np.random.Generator) -> StaticPoint:
+        """The point drawn for one run: uniform in the scatter disc, any heading; itself without scatter."""
+        if self.scatter_m == 0.0:
+            return self
+        r = self.scatter_m * math.sqrt(rng.uniform())  # sqrt: uniform over the disc's area
+        a = rng.uniform(0.0, 2.0 * math.pi)
+        e, n, u = self.position
+        return StaticPoint((e + r * math.cos(a), n + r * math.sin(a), u), 0.0, rng.uniform(-math.pi, math.pi), self.lying)
+
+    def position_enu(self, t: float) -> np.ndarray:
+        return np.array(self.position, dtype=float) + (LYING_LIFT_M if self.lying else 0.0) * np.array([0.0, 0.0, 1.0])
+
+    def velocity_enu(self, t: float) -> np.ndarray:
+        return np.zeros(3)
+
+    def attitude(self, t: float) -> Rotation:
+        """Body (FLU) -> ENU: the heading, then rolled 90 deg onto the ground when ``lying``."""
+        return Rotation.from_euler("ZX", [self.heading_rad, math.pi / 2 if self.lying else 0.0])
 
 
 def circle_points(center_enu, radius_m: float, n: int = 36, phase_rad: float = 0.0,
