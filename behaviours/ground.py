@@ -16,7 +16,9 @@ import py_trees
 
 from behaviours.base import VehicleBehaviour, state_port
 from chaser_bt.cue import TargetCue, TargetEstimate
-from chaser_bt.ground.protocol import Box, cue_message, estimate_message, status_message, tracks_message
+from behaviours.sar import FIND_KEY
+from chaser_bt.find import Find
+from chaser_bt.ground.protocol import Box, cue_message, estimate_message, find_message, status_message, tracks_message
 from chaser_bt.ground.sender import GroundSender
 from chaser_bt.radar.feed import RadarFeed
 from chaser_bt.tree import NodeKind, input_port, register_behaviour
@@ -46,6 +48,7 @@ class StreamToGround(VehicleBehaviour):
                                default_key="/target/estimate"),
         "cue": input_port(TargetCue, "The radar cue (sent when there is no radar resource)", required=False,
                           default_key="/target/cue"),
+        "find": input_port(Find, "A search-and-rescue find (sent when it changes)", required=False, default_key=FIND_KEY),
         "state": state_port(),
     }
     OUTPUT_PORTS: dict = {}
@@ -59,6 +62,7 @@ class StreamToGround(VehicleBehaviour):
         self._host: str | None = None
         self._last_estimate_t: float | None = None
         self._last_cue_t: float | None = None
+        self._last_find_t: float | None = None
         self._last_frame_index: int | None = None
         self._next_frame_t = float("-inf")
 
@@ -101,6 +105,10 @@ class StreamToGround(VehicleBehaviour):
         if isinstance(cue, TargetCue) and cue.t != self._last_cue_t:
             self._last_cue_t = cue.t
             out.send_message("cue", now, cue_message(cue))
+        find = _optional(self, "find")
+        if isinstance(find, Find) and find.t != self._last_find_t:
+            self._last_find_t = find.t
+            out.send_message("find", now, find_message(find))
         self._send_video(now)
         c = out.counters
         self.feedback_message = f"{c.messages} messages, {c.frames} frames, {c.errors} dropped"

@@ -32,6 +32,7 @@ from chaser_bt.tree import MissionTree, load_tree, reset_blackboard
 from chaser_bt.vehicle import LinkConfig, VehicleError, VehicleLink
 from chaser_bt.vehicle.pipe import byte_pipe
 from sitl.scenario import Scenario, load_scenario
+from sitl.sar_scoring import SarObserver
 from sitl.scoring import RehearsalObserver
 from sitl.sensors import SensorOptions, build_sensors
 from sitl.simulator import Simulator
@@ -79,6 +80,9 @@ class RehearsalReport:
     radar_pose_err_m: float | None = None  # mission's radar position minus the truth
     radar_yaw_err_deg: float | None = None
     sensors_wall_s: float = 0.0  # building the sensors (calibration, detector load), not in wall_time_s
+    sar_found: bool | None = None  # search and rescue: the mission's last find lies within 10 m of a person
+    sar_find_error_m: float | None = None  # ... its distance to the nearest person
+    sar_t_find_s: float | None = None  # ... mission time of the first find
     trace: FlightTrace | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self) -> dict:
@@ -208,6 +212,7 @@ def rehearse(
     if on_tick is not None:
         runner.on_tick(on_tick)
     observer = RehearsalObserver(sim, vehicle.link, runner, mission_sensors, trace=trace)
+    sar = SarObserver(sim)
     scorer = _Scorer()
     battery_start = sim.autopilot.battery().remaining_pct
 
@@ -226,6 +231,7 @@ def rehearse(
                 break
             if runner.tick_if_due():
                 observer.after_tick(vehicle.clock.now())
+                sar.after_tick()
                 if runner.finished:
                     message = runner.tip_message()
                     outcome = _finished_outcome(runner.status, sim)
@@ -267,6 +273,7 @@ def rehearse(
         battery_used_pct=round(battery_start - sim.autopilot.battery().remaining_pct, 2),
         message=message,
         **observer.scores().report_keys(),
+        **sar.report_keys(),
         sensors=sorted(mission_sensors.resources),
         radar_pose=None if mission_sensors.radar_pose is None else mission_sensors.radar_pose.method,
         radar_pose_err_m=pose_err[0],

@@ -56,11 +56,8 @@ class SarObserver:
         self.first_find_s: float | None = None
         self.find: Find | None = None
 
-    def attach(self, runner: Any, vehicle: Any = None, resources: Any = None) -> None:
-        """``rehearse(on_start=...)``'s signature: observe after every tick of ``runner``."""
-        runner.on_tick(lambda changes: self.after_tick())
-
     def after_tick(self) -> None:
+        """Called by the rehearsal after every tick: note the launch and the latest find."""
         t = self.sim.time_s
         if self.launch_s is None and not self.sim.truth.on_ground:
             self.launch_s = t

@@ -27,6 +27,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from chaser_bt.cue import TargetCue, TargetEstimate
+from chaser_bt.find import Find
 
 __all__ = [
     "VERSION", "MAX_DATAGRAM", "VIDEO_MAGIC", "VIDEO_HEADER", "Box", "VideoChunk", "FrameAssembler",
@@ -131,6 +132,13 @@ def cue_message(cue: TargetCue) -> dict[str, Any]:
         "sigma_enu_m": [math.sqrt(max(float(v), 0.0)) for v in np.diag(cue.covariance_enu)],
         "velocity_enu": _vec(cue.velocity_enu),
     }
+
+
+def find_message(find: Find) -> dict[str, Any]:
+    """A search-and-rescue find: :meth:`Find.to_dict` with its time as ``t_measured`` (``t`` is the send time)."""
+    body = find.to_dict()
+    body["t_measured"] = body.pop("t")
+    return body
 
 
 def estimate_message(est: TargetEstimate) -> dict[str, Any]:

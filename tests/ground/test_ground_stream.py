@@ -281,6 +281,9 @@ trees:
                            resources={"camera": camera, "radar": radar})
     py_trees.blackboard.Blackboard.set("/target/cue", TargetCue(t=0.0, position_enu=np.array([100.0, 50.0, 30.0]),
                                                                  source="radar", track_id=3))
+    from chaser_bt.find import Find
+    py_trees.blackboard.Blackboard.set("/sar/find", Find(t=1.0, position_enu=np.array([20.0, -5.0, 0.0]), geodetic=None,
+                                                         std_m=0.5, confidence=0.8, fixes=6))
     t0 = vehicle.sim.time_s
     vehicle.run_until(lambda: (runner.tick_if_due() and False), 2.0)
     assert runner.status == py_trees.common.Status.RUNNING
@@ -307,6 +310,8 @@ trees:
     intruder = np.asarray(scenario.targets[0].path.position_enu(vehicle.sim.time_s))
     assert np.linalg.norm(np.array(tracks[0]["position_enu"]) - intruder) < 15.0
     assert len(kinds["cue"]) == 1 and kinds["cue"][0]["track_id"] == 3  # sent once: it did not change
+    assert len(kinds["find"]) == 1 and kinds["find"][0]["position_enu"] == [20.0, -5.0, 0.0] and kinds["find"][0]["fixes"] == 6
+    assert kinds["find"][0]["t_measured"] == 1.0
     assert len(kinds["estimate"]) >= 15 and kinds["estimate"][-1]["source"] == "vision"
     assert 9 <= len(frames) <= 11  # 5 Hz of video over 2 s
     image = cv2.imdecode(np.frombuffer(frames[-1][2], np.uint8), cv2.IMREAD_COLOR)

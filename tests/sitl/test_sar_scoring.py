@@ -49,16 +49,13 @@ class FakeSim:
 def test_observer_scores_the_last_find_and_times_the_first_from_launch():
     sim = FakeSim(sar_scenario((100, 200, 0)))
     obs = SarObserver(sim)
-    listeners = []
-    obs.attach(SimpleNamespace(on_tick=listeners.append))
-    tick = listeners[0]
     bb = py_trees.blackboard.Blackboard
     for t, airborne, find in [(1.0, False, None), (5.0, True, None), (40.0, True, find_at(150, 150)),
                               (60.0, True, find_at(103, 196)), (90.0, False, None)]:
         sim.time_s, sim.truth.on_ground = t, not airborne
         if find is not None:
             bb.set(FIND_KEY, find)
-        tick([])
+        obs.after_tick()
     # Launched at 5 s, first find at 40 s; the last find (3, -4) from the person is the one scored.
     assert obs.report_keys() == {"sar_found": True, "sar_find_error_m": 5.0, "sar_t_find_s": 35.0}
 
