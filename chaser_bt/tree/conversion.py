@@ -23,7 +23,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from chaser_bt.tree.documents import format_of, parse_document
+from chaser_bt.tree.documents import format_of, merge_includes, parse_document
 from chaser_bt.tree.errors import Problem, TreeError
 from chaser_bt.tree.model import SUBTREE_ID, Location, NodeSpec, PortArg, TreeDocument
 from chaser_bt.tree.ports import LiteralError, is_reference_text, literal_text, parse_reference
@@ -37,52 +37,66 @@ __all__ = ["typed_document", "textual_document", "write_document", "convert_text
 _Transform = Callable[[Any, Any, bool], Any]
 
 
-def typed_document(document: TreeDocument, registry: Registry) -> TreeDocument:
-    """A copy whose literals are values of their ports' types, written the YAML way (enums by name)."""
+def typed_document(document: TreeDocument, registry: Registry, context: TreeDocument | None = None) -> TreeDocument:
+    """A copy whose literals are values of their ports' types, written the YAML way (enums by name).
+
+    ``context`` (the document with its includes merged) types the ports of subtrees defined in
+    included files; without it they are typed from ``document`` alone.
+    """
 
     def typed(value: Any, data_type: Any, from_text: bool) -> Any:
         return _plain(typed_literal(value, data_type, from_text))
 
-    return _map_literals(document, registry, typed, from_text_result=False)
+    return _map_literals(document, registry, typed, from_text_result=False, context=context)
 
 
-def textual_document(document: TreeDocument, registry: Registry) -> TreeDocument:
-    """A copy whose literals are BT.CPP attribute text that reads back as the same value."""
+def textual_document(document: TreeDocument, registry: Registry, context: TreeDocument | None = None) -> TreeDocument:
+    """A copy whose literals are BT.CPP attribute text that reads back as the same value (``context``: as above)."""
 
     def textual(value: Any, data_type: Any, from_text: bool) -> Any:
         return literal_text(typed_literal(value, data_type, from_text), data_type)
 
-    return _map_literals(document, registry, textual, from_text_result=True)
+    return _map_literals(document, registry, textual, from_text_result=True, context=context)
 
 
-def write_document(document: TreeDocument, fmt: str, registry: Registry) -> str:
+def write_document(document: TreeDocument, fmt: str, registry: Registry, context: TreeDocument | None = None) -> str:
     """The document as ``fmt`` (``"yaml"`` or ``"xml"``) text, literals converted for that format."""
     if fmt == "xml":
-        return dump_xml(textual_document(document, registry))
+        return dump_xml(textual_document(document, registry, context))
     decorators = frozenset(i for i, t in registry.specs.items() if t.kind is NodeKind.DECORATOR) | {SUBTREE_ID}
-    return dump_yaml(typed_document(document, registry), decorators)
+    return dump_yaml(typed_document(document, registry, context), decorators)
 
 
 def convert_text(
-    text: str, source: str, target: str, registry: Registry | None = None, source_format: str | None = None
+    text: str, source: str, target: str, registry: Registry | None = None, source_format: str | None = None,
+    base_dir: Path | None = None,
 ) -> str:
     """Convert tree text to the ``target`` format, checking that it reads back unchanged.
 
+    Includes stay includes; with ``base_dir`` (where relative include paths start) the subtrees they
+    define give their ports' types, so literals passed to them convert exactly.
+
     Raises:
-        TreeError: the source does not parse, or a value cannot be carried over exactly.
+        TreeError: the source does not parse, an include cannot be read, or a value cannot be carried
+            over exactly.
     """
     registry = registry if registry is not None else default_registry()
     document, problems = parse_document(text, source, source_format)
     if problems:
         raise TreeError(problems)
+    context = None
+    if base_dir is not None and document.includes:
+        context, problems = merge_includes(document, base_dir)
+        if problems:
+            raise TreeError(problems)
     try:
-        output = write_document(document, target, registry)
+        output = write_document(document, target, registry, context)
     except (XmlWriteError, LiteralError) as e:
         raise TreeError([Problem(source, 1, 1, f"cannot write as {target}: {e}")]) from None
     again, problems = parse_document(output, f"<{target} output>", target)
     if problems:
         raise TreeError([Problem(source, 1, 1, f"the {target} written does not read back: {problems[0]}")])
-    difference = _first_difference(typed_document(document, registry), typed_document(again, registry))
+    difference = _first_difference(typed_document(document, registry, context), typed_document(again, registry, context))
     if difference is not None:
         where, what = difference
         raise TreeError([Problem(where.file, where.line, where.column, f"does not survive conversion to {target}: {what}")])
@@ -96,7 +110,7 @@ def convert_file(source: str | Path, target: str | Path, registry: Registry | No
         text = source.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as e:
         raise TreeError([Problem(str(source), 1, 1, f"cannot read tree file: {getattr(e, 'strerror', None) or e}")])
-    output = convert_text(text, str(source), format_of(target), registry, format_of(source))
+    output = convert_text(text, str(source), format_of(target), registry, format_of(source), base_dir=source.parent)
     target.write_text(output, encoding="utf-8")
 
 
@@ -113,16 +127,18 @@ def _plain(value: Any) -> Any:
 
 
 def _map_literals(
-    document: TreeDocument, registry: Registry, transform: _Transform, from_text_result: bool
+    document: TreeDocument, registry: Registry, transform: _Transform, from_text_result: bool,
+    context: TreeDocument | None = None,
 ) -> TreeDocument:
     result = copy.deepcopy(document)
+    types_from = result if context is None else context
     for tree in result.trees.values():
         for node in _walk(tree.root):
             for port, arg in node.ports.items():
                 if is_reference_text(arg.value):
                     continue
                 if node.node_id == SUBTREE_ID:
-                    types = _subtree_key_types(result, node.subtree.tree_id if node.subtree else "", port, registry, set())
+                    types = _subtree_key_types(types_from, node.subtree.tree_id if node.subtree else "", port, registry, set())
                     data_type = types.pop() if len(types) == 1 else None
                 elif node.node_id in registry:
                     declaration = registry.get(node.node_id).port(port)

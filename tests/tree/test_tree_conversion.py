@@ -200,3 +200,20 @@ def test_the_model_escapes_text_and_round_trips_types(registry):
     assert ports["mode"].get("default") == "LOITER"
     assert ports["reached_m"].tag == "output_port"
     assert isinstance(registry.get("Target").port("state"), Port)
+
+
+def test_trees_that_include_subtree_files_convert_exactly(tmp_path):
+    # Literals passed to subtrees defined in included files take those subtrees' port types
+    # (`3.0` stays a number, not the text '3.0'), so the shipped chase converts both ways.
+    from pathlib import Path
+
+    from chaser_bt.tree.conversion import convert_file
+
+    trees = Path(__file__).resolve().parents[2] / "trees"
+    convert_file(trees / "chase.yaml", tmp_path / "chase.xml")
+    xml_text = (tmp_path / "chase.xml").read_text()
+    assert 'link_silence_s="3.0"' in xml_text and "subtrees/safety.xml" in xml_text
+    back = convert_text(xml_text, str(trees / "chase.xml"), "yaml", base_dir=trees)
+    assert "link_silence_s: 3.0" in back
+    with pytest.raises(TreeError, match="does not survive conversion"):  # without the includes the types are unknown
+        convert_text((trees / "chase.yaml").read_text(), "chase.yaml", "xml")
