@@ -110,6 +110,8 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     p.add_argument("--camera-size", type=_size, default=(640, 480), metavar="WxH", help="rendered camera size (default 640x480)")
     p.add_argument("--no-telemetry", action="store_true", help="do not give the mission the intruders' own MAVLink position")
     p.add_argument("--trace", type=Path, metavar="FILE.npz", help="write the flight's per-tick trace (FlightTrace) here")
+    p.add_argument("--report", type=Path, metavar="DIR",
+                   help="write the report there too: report.json, report.md, the trace and the paper's figures")
     add_recording_arguments(p)
 
     for module in _COMMAND_MODULES:
@@ -249,12 +251,17 @@ def _rehearse(args: argparse.Namespace) -> int:
     hook = _recording_hook(args)
     try:
         report = rehearse(tree, scenario, args.seed, rate_hz=args.rate_hz, on_tick=on_tick, sensors=sensors,
-                          on_start=hook, trace=args.trace is not None)
+                          on_start=hook, trace=args.trace is not None or args.report is not None)
     finally:
         if hook is not None:
             hook.close()
     if args.trace is not None:
         report.trace.save(args.trace)
+    if args.report is not None:
+        from sitl.report import write_rehearsal_report
+
+        written = write_rehearsal_report(report, args.report)
+        print(f"report written to {written['markdown']}", file=sys.stderr)
     if args.json:
         print(json.dumps(report.to_dict()))
     else:
