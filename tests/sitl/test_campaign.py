@@ -330,7 +330,10 @@ def test_interrupted_process_campaign_resumes_where_it_stopped(tmp_path, inputs)
     cmd = [sys.executable, "-m", "sitl.campaign", str(tree), "--scenarios", str(scenario), "--seeds", "1-8",
            "--workers", "2", "--no-camera", "--out", str(out)]
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # A shell that starts the suite in the background ignores SIGINT, and Python keeps an inherited
+    # "ignore": give the campaign the default disposition, as in a terminal.
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         deadline = time.monotonic() + 120
         while len(_stored(out)) < 2 and time.monotonic() < deadline and proc.poll() is None:
