@@ -86,3 +86,11 @@ class CommandingBehaviour(VehicleBehaviour):
         if self.link is not None and (new_status == Status.FAILURE or (halted and self.HOVER_ON_HALT)):
             self.link.hover()
             self.feedback_message = f"{self.feedback_message} (hover sent)".strip()
+
+
+def optional_input(node: py_trees.ports.PortsMixin, port: str) -> Any:
+    """The port's value, or None while nothing has been written to its blackboard key yet."""
+    try:
+        return node.get_input(port)
+    except Exception:  # nothing written to the key yet
+        return None

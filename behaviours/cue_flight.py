@@ -15,7 +15,7 @@ from typing import Any, Mapping
 import numpy as np
 import py_trees
 
-from behaviours.base import CommandingBehaviour, FlightMode, VehicleBehaviour, state_port
+from behaviours.base import CommandingBehaviour, FlightMode, VehicleBehaviour, optional_input, state_port
 from chaser_bt.control.cue_approach import approach_point
 from chaser_bt.cue import TargetCue
 from chaser_bt.tree import NodeKind, input_port, register_behaviour
@@ -24,13 +24,6 @@ from chaser_bt.vehicle import Command
 Status = py_trees.common.Status
 
 CUE_KEY = "/target/cue"
-
-
-def _optional(node: py_trees.ports.PortsMixin, port: str) -> Any:
-    try:
-        return node.get_input(port)
-    except Exception:  # nothing written to the key yet
-        return None
 
 
 @register_behaviour
@@ -46,7 +39,7 @@ class CueFresh(VehicleBehaviour):
     OUTPUT_PORTS: dict = {}
 
     def update(self) -> Status:
-        cue = _optional(self, "cue")
+        cue = optional_input(self, "cue")
         if cue is None:
             self.feedback_message = "no cue yet"
             return Status.FAILURE
@@ -93,7 +86,7 @@ class FlyToCue(CommandingBehaviour):
         if state.mode != "GUIDED":
             self.feedback_message = f"vehicle is in {state.mode or 'an unknown mode'}, not GUIDED"
             return Status.FAILURE
-        cue: TargetCue | None = _optional(self, "cue")
+        cue: TargetCue | None = optional_input(self, "cue")
         if cue is None or cue.age(now) > self.get_input("max_age_s"):
             self.feedback_message = "cue lost" if cue is not None else "no cue"
             return Status.FAILURE

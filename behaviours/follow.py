@@ -22,7 +22,7 @@ from typing import Any, Iterator
 import numpy as np
 import py_trees
 
-from behaviours.base import CommandingBehaviour, VehicleBehaviour, state_port
+from behaviours.base import CommandingBehaviour, VehicleBehaviour, optional_input, state_port
 from chaser_bt.control.follow import FollowConfig, FollowController
 from chaser_bt.control.sticks import StickMap
 from chaser_bt.cue import TargetCue, TargetEstimate
@@ -41,13 +41,6 @@ class FollowOutput(enum.Enum):
 
     ALT_HOLD = "alt_hold"  # RC_CHANNELS_OVERRIDE sticks in ALT_HOLD (the paper)
     GUIDED = "guided"  # SET_POSITION_TARGET velocity + yaw rate in GUIDED
-
-
-def _optional(node: py_trees.ports.PortsMixin, port: str) -> Any:
-    try:
-        return node.get_input(port)
-    except Exception:  # nothing written to the key yet
-        return None
 
 
 @register_behaviour
@@ -100,7 +93,7 @@ class _Follow(CommandingBehaviour):
     }
 
     def target(self) -> TargetCue | None:
-        return _optional(self, "target")
+        return optional_input(self, "target")
 
     def config_options(self) -> dict[str, Any]:
         """Further FollowConfig fields from this leaf's own ports."""
@@ -189,8 +182,8 @@ class CVFollow(_Follow):
         return {"range_smoothing_s": self.get_input("range_smoothing_s")}
 
     def target(self) -> TargetCue | None:
-        est: TargetEstimate | None = _optional(self, "target")
-        ranged: TargetCue | None = _optional(self, "range_cue")
+        est: TargetEstimate | None = optional_input(self, "target")
+        ranged: TargetCue | None = optional_input(self, "range_cue")
         if est is None or ranged is None or ranged.age(self._now()) > self.get_input("stale_after_s"):
             return est
         camera = est.position_enu - est.range_m * est.bearing_enu if math.isfinite(est.range_m) else self.state.position_enu
@@ -232,7 +225,7 @@ class HoverOnStale(py_trees.ports.PortsMixin, py_trees.decorators.Decorator):
         if self.status != Status.RUNNING:
             self.initialise()
         now = self.clock.now()
-        cue = _optional(self, "target")
+        cue = optional_input(self, "target")
         if cue is None or cue.age(now) > self.get_input("max_age_s"):
             if self.decorated.status == Status.RUNNING:
                 self.decorated.stop(Status.INVALID)  # the child hovers on halt

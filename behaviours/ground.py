@@ -14,7 +14,7 @@ from typing import Any
 
 import py_trees
 
-from behaviours.base import VehicleBehaviour, state_port
+from behaviours.base import VehicleBehaviour, optional_input, state_port
 from chaser_bt.cue import TargetCue, TargetEstimate
 from behaviours.sar import FIND_KEY
 from chaser_bt.find import Find
@@ -25,13 +25,6 @@ from chaser_bt.tree import NodeKind, input_port, register_behaviour
 from chaser_bt.vision.pipeline import CameraSensor
 
 Status = py_trees.common.Status
-
-
-def _optional(node: py_trees.ports.PortsMixin, port: str) -> Any:
-    try:
-        return node.get_input(port)
-    except Exception:  # nothing written to the key yet
-        return None
 
 
 @register_behaviour
@@ -94,18 +87,18 @@ class StreamToGround(VehicleBehaviour):
         out.send_message("status", now, status_message(
             position_enu=s.position_enu, velocity_enu=s.velocity_enu, yaw_enu_rad=s.yaw_enu_rad, mode=s.mode,
             armed=s.armed, alt_rel_m=s.alt_rel_m, origin=origin, counters=out.counters.as_dict()))
-        est = _optional(self, "estimate")
+        est = optional_input(self, "estimate")
         if isinstance(est, TargetEstimate) and est.t != self._last_estimate_t:
             self._last_estimate_t = est.t
             out.send_message("estimate", now, estimate_message(est))
         if self.radar is not None:
             pic = self.radar.update(now, s.position_enu, s.velocity_enu)
             out.send_message("tracks", now, tracks_message(pic.tracks.values(), pic.ownship_ids))
-        cue = _optional(self, "cue")
+        cue = optional_input(self, "cue")
         if isinstance(cue, TargetCue) and cue.t != self._last_cue_t:
             self._last_cue_t = cue.t
             out.send_message("cue", now, cue_message(cue))
-        find = _optional(self, "find")
+        find = optional_input(self, "find")
         if isinstance(find, Find) and find.t != self._last_find_t:
             self._last_find_t = find.t
             out.send_message("find", now, find_message(find))

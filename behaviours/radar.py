@@ -11,7 +11,7 @@ from typing import Any
 
 import py_trees
 
-from behaviours.base import VehicleBehaviour, state_port
+from behaviours.base import VehicleBehaviour, optional_input, state_port
 from chaser_bt.cue import TargetCue
 from chaser_bt.radar.feed import RadarFeed, RadarPicture, select_intruder
 from chaser_bt.tree import NodeKind, input_port, output_port, register_behaviour
@@ -36,12 +36,6 @@ class _RadarBehaviour(VehicleBehaviour):
         s = self.state
         return self.radar.update(self._now(), s.position_enu, s.velocity_enu)
 
-    def optional_input(self, port: str) -> Any:
-        try:
-            return self.get_input(port)
-        except Exception:  # nothing written to the key yet
-            return None
-
 
 @register_behaviour
 class RadarTrackValidated(_RadarBehaviour):
@@ -61,7 +55,7 @@ class RadarTrackValidated(_RadarBehaviour):
 
     def update(self) -> Status:
         pic = self.picture()
-        confirmed = self.optional_input("operator_confirmation")
+        confirmed = optional_input(self, "operator_confirmation")
         min_conf, min_age = self.get_input("min_confidence"), self.get_input("min_track_age_s")
         chosen = None
         for tr in pic.intruders:
@@ -104,7 +98,7 @@ class RadarCue(_RadarBehaviour):
     def update(self) -> Status:
         pic = self.picture()
         last = self._last.position_enu if self._last is not None else None
-        tr = select_intruder(pic, self.optional_input("track"), last)
+        tr = select_intruder(pic, optional_input(self, "track"), last)
         if tr is None or pic.t - tr.t > self.get_input("max_age_s"):
             self.feedback_message = "no intruder track"
             return Status.FAILURE

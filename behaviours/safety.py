@@ -23,7 +23,7 @@ from typing import Any, Iterator, Mapping
 
 import py_trees
 
-from behaviours.base import FlightMode, VehicleBehaviour, state_port
+from behaviours.base import FlightMode, VehicleBehaviour, optional_input, state_port
 from chaser_bt.mission.geofence import Geofence
 from chaser_bt.tree import NodeKind, input_port, output_port, register_behaviour
 from chaser_bt.vehicle import Command, VehicleState
@@ -34,13 +34,6 @@ Status = py_trees.common.Status
 ENABLED_SINCE_KEY = "/safety/enabled_since"
 #: ArduPilot's aux-switch thresholds (RC_Channel.h AUX_SWITCH_PWM_TRIGGER_HIGH/LOW): above 1800 is high.
 SWITCH_HIGH_PWM = 1800
-
-
-def _optional(node: py_trees.ports.PortsMixin, port: str) -> Any:
-    try:
-        return node.get_input(port)
-    except Exception:  # nothing written to the key yet
-        return None
 
 
 @register_behaviour
@@ -109,7 +102,7 @@ class ModeOverridden(VehicleBehaviour):
         self.authority = ModeAuthority.attach(self._link(), self._now)
 
     def update(self) -> Status:
-        since = _optional(self, "enabled_since")
+        since = optional_input(self, "enabled_since")
         change = self.authority.foreign_since(-math.inf if since is None else since, armed_only=True)
         if change is None:
             self.feedback_message = f"mode {self.state.mode or '?'} is the mission's"
@@ -209,7 +202,7 @@ class Latch(py_trees.ports.PortsMixin, py_trees.decorators.Decorator):
         self._latched_on: Any = None
 
     def tick(self) -> Iterator[py_trees.behaviour.Behaviour]:
-        reset = _optional(self, "reset")
+        reset = optional_input(self, "reset")
         if self.latched and reset != self._latched_on:
             self.latched = False
         if self.latched:

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import py_trees
 
-from behaviours.base import CommandingBehaviour, VehicleBehaviour, state_port
+from behaviours.base import CommandingBehaviour, VehicleBehaviour, optional_input, state_port
 from behaviours.goto import WaypointFrame
 from chaser_bt.cue import TargetCue, TargetEstimate
 from chaser_bt.control.cue_approach import approach_point
@@ -34,13 +34,6 @@ log = logging.getLogger(__name__)
 CUE_KEY = "/target/cue"
 ESTIMATE_KEY = "/target/estimate"
 FIND_KEY = "/sar/find"
-
-
-def _optional(node: py_trees.ports.PortsMixin, port: str) -> Any:
-    try:
-        return node.get_input(port)
-    except Exception:  # nothing written to the key yet
-        return None
 
 
 @register_behaviour
@@ -143,7 +136,7 @@ class ReportFind(VehicleBehaviour):
         if self._estimator is None:
             self._estimator = FindEstimator(self.get_input("plane_z_m"), self.get_input("max_range_m"),
                                             self.get_input("gate_m"), self.get_input("min_fixes"), self.get_input("min_span_s"))
-        est: TargetEstimate | None = _optional(self, "estimate")
+        est: TargetEstimate | None = optional_input(self, "estimate")
         if (est is not None and est.t > self._last_t and est.age(self._now()) <= self.get_input("max_age_s")
                 and est.confidence >= self.get_input("min_confidence")):
             self._last_t = est.t
@@ -192,7 +185,7 @@ class LoiterOverFind(CommandingBehaviour):
         if state.mode != "GUIDED":
             self.feedback_message = f"vehicle is in {state.mode or 'an unknown mode'}, not GUIDED"
             return Status.FAILURE
-        find: Find | None = _optional(self, "find")
+        find: Find | None = optional_input(self, "find")
         if find is None:
             self.feedback_message = "no find to hold over"
             return Status.FAILURE

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import py_trees
 
-from behaviours.base import VehicleBehaviour, state_port
+from behaviours.base import VehicleBehaviour, optional_input, state_port
 from chaser_bt.cue import TargetCue, TargetEstimate
 from chaser_bt.tree import NodeKind, input_port, output_port, register_behaviour
 from chaser_bt.vision.pipeline import CameraSensor, OwnshipPose
@@ -45,13 +45,6 @@ def _shipped(name: str):
     from chaser_bt.vision.detector.inference import shipped_detector
 
     return shipped_detector(name)
-
-
-def _optional(node: py_trees.ports.PortsMixin, port: str) -> Any:
-    try:
-        return node.get_input(port)
-    except Exception:  # nothing written to the key yet
-        return None
 
 
 @register_behaviour
@@ -105,7 +98,7 @@ class VisionPipeline(VehicleBehaviour):
         now = self._now()
         known_range = None
         if self.get_input("range_from_telemetry"):
-            tel = _optional(self, "telemetry")
+            tel = optional_input(self, "telemetry")
             if tel is not None and tel.age(now) <= self.get_input("max_telemetry_age_s"):
                 cam = self.camera.pipeline.camera.position_enu(s.position_enu, s.attitude)
                 known_range = float(np.linalg.norm(tel.position_enu - cam))
@@ -133,7 +126,7 @@ class TargetInView(VehicleBehaviour):
     OUTPUT_PORTS: dict = {}
 
     def update(self) -> Status:
-        est = _optional(self, "estimate")
+        est = optional_input(self, "estimate")
         if est is None:
             self.feedback_message = "no estimate"
             return Status.FAILURE
