@@ -8,13 +8,16 @@ projection, and writes the :class:`~chaser_bt.cue.TargetEstimate` to ``/target/e
 ``detector`` names a shipped detector (``tiny_yolo`` for the drones, ``person_yolo`` for search and
 rescue; ``camera`` keeps the one the camera resource was built with), ``classes`` the class names
 that count as the target, and ``target_on_ground`` ranges a target standing on flat ground (a
-person) where its bearing meets the ground. :class:`TargetInView` is SUCCESS while a confident
+person) where its bearing meets the ground. ``cue`` (unset by default; remap it to the radar cue or
+the target's telemetry) tells the pipeline where to look and which tracks can be the target
+(:class:`~chaser_bt.vision.pipeline.PipelineConfig` ``focus`` and ``cue_gate_deg``). :class:`TargetInView` is SUCCESS while a confident
 estimate is fresh.
 """
 
 from __future__ import annotations
 
 import enum
+from dataclasses import replace
 from functools import lru_cache
 from typing import Any
 
@@ -60,6 +63,11 @@ class VisionPipeline(VehicleBehaviour):
                                default=DetectorChoice.CAMERA),
         "classes": input_port(list[str], "Class names that count as the target (empty: the camera's setting)", default=[]),
         "target_on_ground": input_port(bool, "Target stands on flat ground: range where the bearing meets it", default=False),
+        "cue": input_port(TargetCue, "Where the target should be (radar or telemetry): the detector looks there and "
+                                     "tracks far from it are not the target", required=False),
+        "max_cue_age_s": input_port(float, "An older cue is not used (s)", default=2.0),
+        "detect_every": input_port(int, "Run the detector on every k-th frame, trackers between (0: the camera's setting)",
+                                   default=0),
         "state": state_port(),
     }
     OUTPUT_PORTS = {"estimate": output_port(TargetEstimate, "Where the camera sees the target", default_key=ESTIMATE_KEY)}
@@ -80,6 +88,11 @@ class VisionPipeline(VehicleBehaviour):
         classes = tuple(self.get_input("classes") or ())
         on_ground = bool(self.get_input("target_on_ground"))
         wanted_classes = classes or pipeline.config.classes
+        every = int(self.get_input("detect_every"))
+        if every < 0:
+            raise ValueError(f"detect_every must be >= 0, got {every}")
+        if every and every != pipeline.config.detect_every:
+            pipeline.config = replace(pipeline.config, detect_every=every)
         if choice is not DetectorChoice.CAMERA and pipeline.detector_name != choice.value:
             pipeline.use_detector(_shipped(choice.value), choice.value, wanted_classes, on_ground)
         elif wanted_classes != pipeline.config.classes or on_ground != pipeline.config.target_on_ground:
@@ -102,8 +115,11 @@ class VisionPipeline(VehicleBehaviour):
             if tel is not None and tel.age(now) <= self.get_input("max_telemetry_age_s"):
                 cam = self.camera.pipeline.camera.position_enu(s.position_enu, s.attitude)
                 known_range = float(np.linalg.norm(tel.position_enu - cam))
+        cue = optional_input(self, "cue")
+        if cue is not None and cue.age(now) > self.get_input("max_cue_age_s"):
+            cue = None
         vel = s.velocity_enu if np.all(np.isfinite(s.velocity_enu)) else np.zeros(3)
-        est = self.camera.step(now, OwnshipPose(now, s.position_enu, vel, s.attitude), known_range)
+        est = self.camera.step(now, OwnshipPose(now, s.position_enu, vel, s.attitude), known_range, cue)
         if est is None:
             self.feedback_message = "no target in view"
             return Status.FAILURE

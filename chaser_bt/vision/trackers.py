@@ -8,7 +8,11 @@ and a detection that no track overlaps starts a new track. With ``max_misses`` >
 track (two or more detector hits) may instead coast on its trackers through that many detector
 frames in a row that miss it, unless the detector contradicts it (sees something at least as
 confident elsewhere); a detection much larger than a track it covers (the detector boxing the
-target together with the road under it) neither reseeds it nor starts a track.
+target together with the road under it) neither reseeds it nor starts a track. A small box moves
+more than its own width between frames, so a detection also agrees with a track when its centre is
+within ``match_centre_sizes`` of the track's box size. Only tracks the detector could have seen are
+judged: a track outside the detector's ``region`` (a focus window), or any track when the detector
+looked at the whole frame at a coarser scale (``judge=False``), is carried unchanged.
 
 Trackers in the installed OpenCV (opencv-contrib 5.0): cv2.TrackerKCF, TrackerCSRT, TrackerMIL
 (and the learned DaSiamRPN / Nano / Vit, which need model files we do not ship); cv2.legacy adds
@@ -80,6 +84,10 @@ def _window(box, min_px: float, w: int, h: int) -> tuple[int, int, int, int]:
     return (x0, y0, int(round(bw)), int(round(bh)))
 
 
+def _inside(point: tuple[float, float], region: tuple[float, float, float, float] | None) -> bool:
+    return region is None or (region[0] <= point[0] <= region[2] and region[1] <= point[1] <= region[3])
+
+
 class TrackerBank:
     """Zero or more trackers per track, reseeded and pruned by detections (see module docstring).
 
@@ -90,16 +98,19 @@ class TrackerBank:
         max_tracks: most tracks kept (the highest scores).
         max_misses: detector frames in a row a confirmed track may coast without a detection (0: prune at once).
         max_size_ratio: largest ratio of the square roots of a detection's and a track's areas for them to agree.
+        match_centre_sizes: a detection whose centre is within this many track box sizes (the larger side)
+            of the track's centre agrees with it even without overlap.
     """
 
     def __init__(self, kinds: Sequence[str] = ("mosse", "medianflow"), match_iou: float = 0.2, min_window_px: float = 32.0, max_tracks: int = 5,
-                 max_misses: int = 0, max_size_ratio: float = 1.8) -> None:
+                 max_misses: int = 0, max_size_ratio: float = 1.8, match_centre_sizes: float = 1.0) -> None:
         for k in kinds:
             make_tracker(k)
         self.kinds = tuple(kinds)
         self.max_misses = max_misses
         self.max_size_ratio = max_size_ratio
         self.match_iou = match_iou
+        self.match_centre_sizes = match_centre_sizes
         self.min_window_px = min_window_px
         self.max_tracks = max_tracks
         self.tracks: list[Track] = []
@@ -118,13 +129,18 @@ class TrackerBank:
             except cv2.error as e:
                 log.debug("tracker %s failed to start: %s", k, e)
 
-    def correct(self, frame: np.ndarray, detections: Sequence[Detection], t: float) -> list[Track]:
-        """A detector frame: reseed agreeing tracks, prune the rest, start tracks on new detections."""
+    def correct(self, frame: np.ndarray, detections: Sequence[Detection], t: float,
+                region: tuple[float, float, float, float] | None = None, judge: bool = True) -> list[Track]:
+        """A detector frame: reseed agreeing tracks, prune the rest, start tracks on new detections.
+
+        ``region`` (x0, y0, x1, y1) is the part of the frame the detector saw (None: all of it);
+        with ``judge`` False no track is pruned for want of a detection."""
         kept: list[Track] = []
         used = set()
         agree = np.zeros((len(self.tracks), len(detections)), bool)
         covers = np.zeros((len(self.tracks), len(detections)), bool)
         ious = np.zeros((len(self.tracks), len(detections)))
+        dist = np.zeros((len(self.tracks), len(detections)))
         if self.tracks and detections:
             tb = np.array([tr.box for tr in self.tracks], float)
             db = np.array([d.box for d in detections], float)
@@ -132,11 +148,17 @@ class TrackerBank:
             ta = np.prod(np.clip(tb[:, 2:] - tb[:, :2], 1e-6, None), axis=1)
             da = np.prod(np.clip(db[:, 2:] - db[:, :2], 1e-6, None), axis=1)
             ratio = np.sqrt(da[None, :] / ta[:, None])
-            agree = (ious >= self.match_iou) & (ratio <= self.max_size_ratio) & (ratio >= 1.0 / self.max_size_ratio)
+            tc, dc = 0.5 * (tb[:, :2] + tb[:, 2:]), 0.5 * (db[:, :2] + db[:, 2:])
+            dist = np.linalg.norm(tc[:, None] - dc[None], axis=2)
+            near = dist <= self.match_centre_sizes * np.max(tb[:, 2:] - tb[:, :2], axis=1)[:, None]
+            agree = ((ious >= self.match_iou) | near) & (ratio <= self.max_size_ratio) & (ratio >= 1.0 / self.max_size_ratio)
             inter = np.prod(np.clip(np.minimum(tb[:, None, 2:], db[None, :, 2:]) - np.maximum(tb[:, None, :2], db[None, :, :2]), 0, None), axis=2)
             covers = (inter >= 0.6 * ta[:, None]) & (ratio > self.max_size_ratio)
         for i, track in enumerate(self.tracks):
-            order = [j for j in np.argsort(-ious[i]) if j not in used and agree[i, j]]
+            order = sorted((j for j in range(len(detections)) if j not in used and agree[i, j]), key=lambda j: (-ious[i, j], dist[i, j]))
+            if not order and not (judge and _inside(track.centre, region)):
+                kept.append(track)  # the detector could not have seen it: no evidence either way
+                continue
             if not order:
                 # The detector contradicts the track when it is at least as sure of something else.
                 contradicted = any(d.score >= track.score for j, d in enumerate(detections) if not covers[i, j])

@@ -267,7 +267,7 @@ def test_stream_to_ground_sends_status_tracks_cue_estimate_and_boxed_video_and_k
                                                         radar_cfg.sigma_el_rad))
     detector = lambda image: [Detection((250.0, 180.0, 330.0, 240.0), 0.9, 0, "s1000")]  # noqa: E731
     camera = CameraSensor(_StillCamera(), VisionPipeline(CameraModel(width_px=640, height_px=480), detector,
-                                                         PipelineConfig(detect_every=1, tracker_kinds=())))
+                                                         PipelineConfig(detect_every=1, tracker_kinds=(), focus=False)))
     tree = load_tree_text(f"""
 version: 1
 trees:

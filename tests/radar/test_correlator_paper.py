@@ -112,3 +112,34 @@ def test_make_correlator_by_name():
     assert isinstance(make_correlator("gated"), GatedCorrelator)
     with pytest.raises(ValueError, match="alg1, gated"):
         make_correlator("nope")
+
+
+def test_gated_gives_a_drone_we_follow_inside_a_wide_gate_back_to_the_picture():
+    """At long range the gate is wide (sigma 8 m: 32 m): a drone 24 m away at our velocity passes it.
+    Held on that drone's track (ours was not reported yet), the correlator switches to our own
+    track as soon as it is confirmed, since its residual is far lower; and the other drone is not
+    filed under the ownship (it is not a duplicate: 24 m > ambiguity_m)."""
+    c = GatedCorrelator()
+    follow = np.array([24.0, 0.0, 0.0])
+    out = {}
+    for k in range(0, 25):
+        t = k / 4
+        c.add_ownship(t, OWN, np.zeros(3))
+        tracks = {2: follow} if t < 2.0 else {1: OWN + 1.0, 2: follow}
+        ids = list(tracks)
+        c.add_tracks(TrackPoints.build(t, ids, [tracks[i] for i in ids], np.zeros((len(ids), 3)), 8.0))
+        out[t] = c.associate(t)
+    assert out[1.75].associated_id == 2  # only the other drone in the gate: taken, for now
+    # Our track is confirmed after two reports (2.0, 2.25): the switch is immediate.
+    assert out[2.25].associated_id == 1 and out[2.25].ownship_ids == {1} and out[2.25].unassociated_ids == (2,)
+    assert all(out[t].associated_id == 1 and out[t].ownship_ids == {1} for t in out if t >= 2.25)
+    # A cost margin: with the other drone's residual barely above ours, the held track stays.
+    c2 = GatedCorrelator(switch_margin=10.0)
+    for k in range(0, 25):
+        t = k / 4
+        c2.add_ownship(t, OWN, np.zeros(3))
+        tracks = {2: follow} if t < 2.0 else {1: OWN + 1.0, 2: follow}
+        ids = list(tracks)
+        c2.add_tracks(TrackPoints.build(t, ids, [tracks[i] for i in ids], np.zeros((len(ids), 3)), 8.0))
+        last = c2.associate(t)
+    assert last.associated_id == 2

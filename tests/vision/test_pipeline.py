@@ -52,7 +52,7 @@ def test_estimate_lies_along_the_bearing_with_covariance_long_on_the_line_of_sig
     cam = CameraModel(width_px=320, height_px=240, tilt_rad=0.0)
     fx = cam.focal_px[0]
     width = 1.42 * fx / 20.0  # an S1000 20 m away, box centred
-    pipe = VisionPipeline(cam, _Fixed((160 - width / 2, 110, 160 + width / 2, 130)), PipelineConfig(detect_every=1, tracker_kinds=(), confirm_hits=1))
+    pipe = VisionPipeline(cam, _Fixed((160 - width / 2, 110, 160 + width / 2, 130)), PipelineConfig(detect_every=1, tracker_kinds=(), focus=False, confirm_hits=1))
     from scipy.spatial.transform import Rotation
 
     pose = OwnshipPose(0.0, np.array([0.0, 0.0, 10.0]), np.zeros(3), Rotation.identity())
@@ -63,7 +63,7 @@ def test_estimate_lies_along_the_bearing_with_covariance_long_on_the_line_of_sig
     w, v = np.linalg.eigh(est.covariance_enu)
     assert abs(v[:, -1] @ est.bearing_enu) == pytest.approx(1.0)  # largest uncertainty along the line of sight
     # Telemetry range overrides the box.
-    est2 = VisionPipeline(cam, _Fixed((150, 110, 170, 130)), PipelineConfig(detect_every=1, tracker_kinds=(), confirm_hits=1)).process(
+    est2 = VisionPipeline(cam, _Fixed((150, 110, 170, 130)), PipelineConfig(detect_every=1, tracker_kinds=(), focus=False, confirm_hits=1)).process(
         Frame(0.0, np.zeros((240, 320, 3), np.uint8), 0), pose, target_range_m=33.0)
     assert est2.range_m == pytest.approx(33.0)
 
@@ -120,11 +120,11 @@ def _run(pipe, n):
 def test_a_track_is_reported_after_confirm_hits_detections():
     cam = CameraModel(width_px=320, height_px=240, tilt_rad=0.0)
     box = [((150.0, 110.0, 170.0, 130.0), 0.8)]
-    one = _run(VisionPipeline(cam, _Script([box]), PipelineConfig(detect_every=1, tracker_kinds=())), 3)
+    one = _run(VisionPipeline(cam, _Script([box]), PipelineConfig(detect_every=1, tracker_kinds=(), focus=False)), 3)
     assert one[0] is None and one[1] is not None and one[2] is not None
-    three = _run(VisionPipeline(cam, _Script([box]), PipelineConfig(detect_every=1, tracker_kinds=(), confirm_hits=3)), 3)
+    three = _run(VisionPipeline(cam, _Script([box]), PipelineConfig(detect_every=1, tracker_kinds=(), focus=False, confirm_hits=3)), 3)
     assert [e is None for e in three] == [True, True, False]
-    flicker = _run(VisionPipeline(cam, _Script([box, [], box, []]), PipelineConfig(detect_every=1, tracker_kinds=())), 4)
+    flicker = _run(VisionPipeline(cam, _Script([box, [], box, []]), PipelineConfig(detect_every=1, tracker_kinds=(), focus=False)), 4)
     assert all(e is None for e in flicker)  # never two hits in a row: a one-frame false positive is never reported
 
 
@@ -134,7 +134,7 @@ def test_after_losing_the_target_the_track_nearest_its_last_bearing_is_picked():
     near = ((180.0, 112.0, 200.0, 132.0), 0.5)  # 30 px right: no overlap with the lost track
     far = ((20.0, 20.0, 40.0, 40.0), 0.9)       # surer, but across the image
     script = [[centre], [centre], [near, far], [near, far]]
-    cfg = PipelineConfig(detect_every=1, tracker_kinds=())
+    cfg = PipelineConfig(detect_every=1, tracker_kinds=(), focus=False)
     est = _run(VisionPipeline(cam, _Script(script), cfg), 4)
     proj = Projector(cam)
     from scipy.spatial.transform import Rotation
@@ -142,5 +142,5 @@ def test_after_losing_the_target_the_track_nearest_its_last_bearing_is_picked():
     assert est[1] is not None and est[2] is None  # the centre track is gone, the new ones are not confirmed yet
     assert est[3].bearing_enu == pytest.approx(proj.bearing_enu(np.array([[190.0, 122.0]]), Rotation.identity())[0], abs=1e-9)
     # With no recent estimate to go by, the surer track wins.
-    est = _run(VisionPipeline(cam, _Script(script), PipelineConfig(detect_every=1, tracker_kinds=(), reacquire_s=0.0)), 4)
+    est = _run(VisionPipeline(cam, _Script(script), PipelineConfig(detect_every=1, tracker_kinds=(), focus=False, reacquire_s=0.0)), 4)
     assert est[3].bearing_enu == pytest.approx(proj.bearing_enu(np.array([[30.0, 30.0]]), Rotation.identity())[0], abs=1e-9)

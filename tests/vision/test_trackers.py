@@ -105,3 +105,26 @@ def test_an_oversized_detection_around_a_track_neither_reseeds_it_nor_starts_a_t
     bank0 = TrackerBank(["mosse"])
     tid0 = _confirmed(bank0)
     assert [t.track_id for t in bank0.correct(_scene(100, 100), [big], 0.2)] not in ([], [tid0])
+
+
+def test_a_small_box_that_moved_its_own_width_still_agrees_but_one_further_does_not():
+    def small(x):
+        return Detection((x, 100.0, x + 6.0, 106.0), 0.9, 0, "s1000")
+
+    bank = TrackerBank([])
+    (first,) = bank.correct(_scene(0, 0), [small(100.0)], 0.0)
+    (track,) = bank.correct(_scene(0, 0), [small(106.0)], 0.1)   # no overlap, centre 6 px = one box width away
+    assert track.track_id == first.track_id and track.hits == 2
+    tracks = bank.correct(_scene(0, 0), [small(113.0)], 0.2)     # 7 px: a different object
+    assert [tr.track_id for tr in tracks] != [first.track_id]
+
+
+def test_only_tracks_the_detector_could_see_are_pruned():
+    bank = TrackerBank([])
+    bank.correct(_scene(0, 0), [_det(100, 100), _det(250, 200)], 0.0)
+    # A focus window over the first track: the second, outside it, is carried though nothing saw it.
+    tracks = bank.correct(_scene(0, 0), [_det(101, 100)], 0.1, region=(50.0, 50.0, 180.0, 180.0))
+    assert sorted(tr.box[0] for tr in tracks) == [101.0, 250.0]
+    # The whole frame at a coarse scale (judge=False) prunes nothing; judged, the unseen track goes.
+    assert len(bank.correct(_scene(0, 0), [], 0.2, judge=False)) == 2
+    assert bank.correct(_scene(0, 0), [], 0.3) == []

@@ -41,7 +41,7 @@ class _Detector:
 
 def _tree(body: str, detector, clock):
     tree = load_tree_text("version: 1\ntrees:\n  Test:\n    " + body + "\n", source="<test>")
-    sensor = CameraSensor(_Source(), VisionPipeline(CAM, detector, PipelineConfig(detect_every=1, tracker_kinds=(), confirm_hits=1)))
+    sensor = CameraSensor(_Source(), VisionPipeline(CAM, detector, PipelineConfig(detect_every=1, tracker_kinds=(), confirm_hits=1, focus=False)))
     bt = py_trees.trees.BehaviourTree(tree.root)
     bt.setup(link=object(), clock=clock, camera=sensor)
     return bt

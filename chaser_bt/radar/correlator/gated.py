@@ -14,10 +14,14 @@ association for as long. This method looks at each track's last few reports inst
   ``hold_s`` (or no fresher candidate exists), so duplicates and
   close passes do not make it flicker; otherwise the candidate with the smallest mean normalised
   residual is taken at once (a one-target assignment on a gated cost);
+* but a held track gives way to a candidate at least ``switch_margin`` cheaper that is not a
+  duplicate of it (further than ``ambiguity_m``): at long range the gate is tens of metres wide,
+  and a drone we follow a few tens of metres away, at our velocity, passes it too;
 * a new association is not made while another, non-candidate track is within ``ambiguity_m`` of
   the candidate: in a close pass the method waits rather than guesses;
-* every candidate is attributed to the ownship, so the radar's duplicate tracks of our own drone
-  are filtered out of the mission's picture as well.
+* every candidate within ``ambiguity_m`` of the associated track is attributed to the ownship, so
+  the radar's duplicate tracks of our own drone are filtered out of the mission's picture as well
+  (a candidate further away is another drone inside the gate, not us).
 
 The velocity gate is what catches a swap within a scan or two: the ids exchange where the two
 drones are close in position, but they rarely fly the same velocity there.
@@ -46,13 +50,16 @@ class GatedCorrelator(TrackCorrelator):
             drones passing close: wait until they part rather than guess).
         hold_s: the associated track, unreported for longer than this, gives way to a fresher
             candidate (the radar dropped it and already tracks the ownship under a new id).
+        switch_margin: a candidate whose mean normalised residual is lower than the associated
+            track's by this much, and not within ``ambiguity_m`` of it, takes the association.
     """
 
     name = "gated"
 
     def __init__(self, *, gate_sigma: float = 4.0, floor_m: float = 5.0, vel_gate_mps: float = 3.0,
                  confirm_n: int = 2, reject_window: int = 4, reject_n: int = 2, active_s: float = 1.0,
-                 ambiguity_m: float = 10.0, hold_s: float = 0.5, history_s: float = 3.0, max_gps_gap_s: float = 1.0) -> None:
+                 ambiguity_m: float = 10.0, hold_s: float = 0.5, switch_margin: float = 0.3, history_s: float = 3.0,
+                 max_gps_gap_s: float = 1.0) -> None:
         super().__init__(history_s=history_s, active_s=active_s, max_gps_gap_s=max_gps_gap_s)
         if not (1 <= confirm_n and 1 <= reject_n <= reject_window):
             raise ValueError("need 1 <= confirm_n and 1 <= reject_n <= reject_window")
@@ -64,7 +71,9 @@ class GatedCorrelator(TrackCorrelator):
         self.reject_n = reject_n
         self.ambiguity_m = ambiguity_m
         self.hold_s = hold_s
+        self.switch_margin = switch_margin
         self._candidates: frozenset[int] = frozenset()
+        self._latest: dict[int, np.ndarray] = {}
 
     def _consistency(self, w: CorrelationWindow) -> tuple[np.ndarray, np.ndarray]:
         """Per report: consistent with the ownship?, and its normalised residual."""
@@ -87,6 +96,7 @@ class GatedCorrelator(TrackCorrelator):
         starts = np.searchsorted(ids_sorted, w.active_ids, side="left")
         ends = np.searchsorted(ids_sorted, w.active_ids, side="right")
         candidates: dict[int, float] = {}
+        recent_cost: dict[int, float] = {}
         rejected: set[int] = set()
         latest: dict[int, np.ndarray] = {}
         last_t: dict[int, float] = {}
@@ -97,14 +107,20 @@ class GatedCorrelator(TrackCorrelator):
             last_t[tid] = float(p.t[idx[-1]])
             last_ok = ok[idx]
             tail = last_ok[-self.confirm_n:]
+            recent_cost[tid] = float(cost[idx[-self.confirm_n:]].mean())
             if tail.size == self.confirm_n and tail.all():
-                candidates[tid] = float(cost[idx[-self.confirm_n:]].mean())
+                candidates[tid] = recent_cost[tid]
             if (~last_ok[-self.reject_window:]).sum() >= self.reject_n:
                 rejected.add(tid)
         self._candidates = frozenset(candidates)
+        self._latest = latest
         a = self.associated_id
         if a is not None and a in set(w.active_ids.tolist()) and a not in rejected:
             fresher = [k for k in candidates if k != a and last_t[k] > last_t[a]]
+            better = [k for k, c in candidates.items() if k != a and c < recent_cost[a] - self.switch_margin
+                      and float(np.linalg.norm(latest[k] - latest[a])) >= self.ambiguity_m and not self._ambiguous(k, latest)]
+            if better:
+                return min(better, key=lambda k: (candidates[k], k))
             if w.t - last_t[a] <= self.hold_s or not fresher:
                 return a
         clear = {k: c for k, c in candidates.items() if not self._ambiguous(k, latest)}
@@ -120,4 +136,9 @@ class GatedCorrelator(TrackCorrelator):
 
     def _ownship_ids(self, w: CorrelationWindow) -> frozenset[int]:
         own = set(super()._ownship_ids(w))
-        return frozenset(own | set(self._candidates))
+        a = self.associated_id
+        if a is None or a not in self._latest:
+            return frozenset(own | set(self._candidates))
+        here = self._latest[a]
+        return frozenset(own | {k for k in self._candidates
+                                if float(np.linalg.norm(self._latest[k] - here)) < self.ambiguity_m})
