@@ -180,8 +180,8 @@ class VisionPipeline:
             self.range_filter.update_known(frame.t, target_range_m)
         elif span is not None and track.t_detected == frame.t and (region is None or cue_enu is not None):
             # Box sizes come from whole-frame detections where there are any (no cue): seen zoomed,
-            # the detector draws the box wider (1.15-1.4x the target against 1.1-1.2x on the whole
-            # frame, measured on rendered follow views), which biases the range short. With a cue
+            # the detector draws the box wider (1.16-1.35x the target at 2x against 1.15-1.22x on the
+            # whole frame: benchmarks/bench_focus.py), which biases the range short. With a cue
             # every detection is zoomed, and those are all there is.
             self.last_box_range_m = range_from_box(track.box, span, 0.5 * self.camera.width_px, fx)
             self.range_filter.update_box(frame.t, track.box, span, 0.5 * self.camera.width_px, fx)
