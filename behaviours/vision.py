@@ -10,7 +10,8 @@ rescue; ``camera`` keeps the one the camera resource was built with), ``classes`
 that count as the target, and ``target_on_ground`` ranges a target standing on flat ground (a
 person) where its bearing meets the ground. ``cue`` (unset by default; remap it to the radar cue or
 the target's telemetry) tells the pipeline where to look and which tracks can be the target
-(:class:`~chaser_bt.vision.pipeline.PipelineConfig` ``focus`` and ``cue_gate_deg``). :class:`TargetInView` is SUCCESS while a confident
+(:class:`~chaser_bt.vision.pipeline.PipelineConfig` ``focus`` and ``cue_gate_deg``), and
+``detect_every`` sets how often the detector runs. :class:`TargetInView` is SUCCESS while a confident
 estimate is fresh.
 """
 
