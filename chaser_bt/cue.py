@@ -46,6 +46,12 @@ class TargetCue:
         """Seconds since the measurement."""
         return now - self.t
 
+    def position_at(self, t: float) -> np.ndarray:
+        """The position carried to time ``t`` on the cue's velocity (as measured when it has none)."""
+        if self.velocity_enu is None:
+            return self.position_enu
+        return self.position_enu + self.velocity_enu * (t - self.t)
+
 
 @dataclass(frozen=True)
 class TargetEstimate(TargetCue):

@@ -24,3 +24,11 @@ def test_estimate_requires_a_unit_bearing_and_a_confidence_in_range():
         TargetEstimate(t=0.0, position_enu=[0, 40, 0], bearing_enu=[0, 2, 0])
     with pytest.raises(ValueError, match="confidence"):
         TargetEstimate(t=0.0, position_enu=[0, 40, 0], confidence=1.5)
+
+
+def test_cue_position_is_carried_on_its_velocity_when_it_has_one():
+    moving = TargetCue(t=10.0, position_enu=np.array([1.0, 2.0, 3.0]), velocity_enu=np.array([2.0, -1.0, 0.5]))
+    assert moving.position_at(12.0) == pytest.approx([5.0, 0.0, 4.0])
+    assert moving.position_at(10.0) == pytest.approx([1.0, 2.0, 3.0])
+    still = TargetCue(t=10.0, position_enu=np.array([1.0, 2.0, 3.0]))
+    assert still.position_at(99.0) == pytest.approx([1.0, 2.0, 3.0])

@@ -52,12 +52,12 @@ def focus_window(centre_px: tuple[float, float], expected_box_px: float, frame_s
     the window (``input_px / zoom`` frame pixels square, never larger than the frame's short side)
     is shifted to lie inside the frame rather than cut by its edge.
     """
+    if not min_zoom > 0 or max_zoom < min_zoom:
+        raise ValueError(f"need 0 < min_zoom <= max_zoom, got {min_zoom}, {max_zoom}")
     w, h = frame_size
     cx, cy = centre_px
     if not (np.isfinite(cx) and np.isfinite(cy)) or not (0.0 <= cx < w and 0.0 <= cy < h):
         return None
-    if not min_zoom > 0 or max_zoom < min_zoom:
-        raise ValueError(f"need 0 < min_zoom <= max_zoom, got {min_zoom}, {max_zoom}")
     zoom = float(np.clip(box_px / max(expected_box_px, 1e-3), min_zoom, max_zoom))
     side = int(round(input_px / zoom))
     if side > min(w, h):

@@ -146,10 +146,11 @@ class VisionPipeline:
         ``cue`` a fresh cue of the target (radar or telemetry) to look at and gate tracks by."""
         image = frame.image
         att = self.smoother.update(frame.t, ownship.attitude)
-        cue_enu = None if cue is None else _cue_position(cue, frame.t)
+        cam = self.camera.position_enu(ownship.position_enu, att)
+        cue_enu = None if cue is None else cue.position_at(frame.t)
         region = None
         if self.frames % self.config.detect_every == 0:
-            dets, region, judge = self._detect(image, ownship, att, cue_enu)
+            dets, region, judge = self._detect(image, ownship, att, cam, cue_enu)
             dets = [d for d in dets if not self.config.classes or d.class_name in self.config.classes]
             tracks = self.trackers.correct(image, dets, frame.t, region, judge)
             self.detector_frames += 1
@@ -160,7 +161,7 @@ class VisionPipeline:
         need = 1 if cue_enu is not None else self.config.confirm_hits
         tracks = [tr for tr in tracks if frame.t - tr.t_detected <= self.config.max_track_age_s and tr.hits >= need]
         if cue_enu is not None and tracks:
-            tracks = self._gate(tracks, att, ownship, cue_enu, cue.covariance_enu)
+            tracks = self._gate(tracks, att, cam, cue_enu, cue.covariance_enu)
         if not tracks:
             self.track = None
             self.range_filter.reset()
@@ -173,7 +174,6 @@ class VisionPipeline:
         self.range_filter.predict(frame.t, ownship.velocity_enu, bearing)
         fx = self.camera.focal_px[0]
         span = TARGET_SPAN_M.get(track.class_name)
-        cam = self.camera.position_enu(ownship.position_enu, att)
         if target_range_m is None and self.config.target_on_ground:
             target_range_m = ground_range(cam, bearing)
         if target_range_m is not None:
@@ -196,7 +196,7 @@ class VisionPipeline:
                                             confidence=float(min(max(conf, 0.0), 1.0)))
         return self.last_estimate
 
-    def _detect(self, image: np.ndarray, ownship: OwnshipPose, attitude: Rotation,
+    def _detect(self, image: np.ndarray, ownship: OwnshipPose, attitude: Rotation, camera_enu: np.ndarray,
                 cue_enu: np.ndarray | None) -> tuple[list[Detection], tuple[float, float, float, float] | None, bool]:
         """Detections, the region the detector saw (None: the whole frame) and whether a track it
         did not see there counts against it: the focus window when there is one this frame, else the
@@ -211,7 +211,7 @@ class VisionPipeline:
             centre, expected = track.centre, max(track.size)
         elif cue_enu is not None:
             px, front = self.projector.pixel_of(cue_enu[None], ownship.position_enu, attitude)
-            rng = float(np.linalg.norm(cue_enu - self.camera.position_enu(ownship.position_enu, attitude)))
+            rng = float(np.linalg.norm(cue_enu - camera_enu))
             if front[0] and rng > 0.0:
                 centre, expected = (float(px[0, 0]), float(px[0, 1])), self._span_m() * self.camera.focal_px[0] / rng
         window = None
@@ -230,11 +230,10 @@ class VisionPipeline:
         spans = [TARGET_SPAN_M[c] for c in (self.config.classes or tuple(TARGET_SPAN_M)) if c in TARGET_SPAN_M]
         return max(spans) if spans else 1.0
 
-    def _gate(self, tracks: list[Track], attitude: Rotation, ownship: OwnshipPose, cue_enu: np.ndarray,
+    def _gate(self, tracks: list[Track], attitude: Rotation, camera_enu: np.ndarray, cue_enu: np.ndarray,
               cue_cov: np.ndarray) -> list[Track]:
         """The tracks whose bearing is within the gate of the cue's bearing from the camera."""
-        cam = self.camera.position_enu(ownship.position_enu, attitude)
-        to_cue = cue_enu - cam
+        to_cue = cue_enu - camera_enu
         dist = float(np.linalg.norm(to_cue))
         if dist <= 1e-6:
             return tracks
@@ -256,14 +255,6 @@ class VisionPipeline:
             bearings = self.projector.bearing_enu(np.array([tr.centre for tr in tracks]), attitude)
             return tracks[int(np.argmax(bearings @ last.bearing_enu))]
         return max(tracks, key=lambda tr: (min(tr.hits, 3), tr.score))
-
-
-def _cue_position(cue: TargetCue, t: float) -> np.ndarray:
-    """The cue's position carried to time ``t`` on its velocity, when it has one."""
-    v = cue.velocity_enu
-    if v is None or not np.all(np.isfinite(v)):
-        return cue.position_enu
-    return cue.position_enu + v * (t - cue.t)
 
 
 def ground_range(camera_enu: np.ndarray, bearing_enu: np.ndarray, min_down: float = 0.02) -> float | None:

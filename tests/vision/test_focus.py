@@ -31,6 +31,8 @@ def test_window_zooms_the_expected_box_to_box_px_and_stays_in_the_frame():
     assert focus_window((5.0, 470.0), 16.0, (640, 480)) == FocusWindow(0, 272, 208, 2.0)
     assert focus_window((-1.0, 10.0), 16.0, (640, 480)) is None
     assert focus_window((10.0, float("nan")), 16.0, (640, 480)) is None
+    with pytest.raises(ValueError, match="min_zoom"):
+        focus_window((-1.0, 10.0), 16.0, (640, 480), min_zoom=2.0, max_zoom=1.0)  # refused even off the frame
 
 
 @settings(max_examples=200, deadline=None)
