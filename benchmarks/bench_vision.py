@@ -6,7 +6,7 @@ the person detector (search and rescue) on a held-out person set, seed 778. Pipe
 share of labelled frames whose reported box is right (IoU >= 0.5), the bearing error p95 at the box
 centre on those frames (the acceptance's wording) and on every frame with an estimate.
 Speeds are single-threaded (torch and OpenCV), the setting measured fastest on the shared CPU.
-Usage: python benchmarks/bench_vision.py [--quick]
+Usage: python benchmarks/bench_vision.py [--quick] [--weights W.pt] (default: the shipped drone detector)
 """
 
 from __future__ import annotations
@@ -39,13 +39,13 @@ def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
     return math.degrees(math.atan2(np.linalg.norm(np.cross(a, b)), float(np.dot(a, b))))
 
 
-def detector_metrics(n: int, seed: int) -> dict:
+def detector_metrics(n: int, seed: int, weights: str) -> dict:
     data = DatasetRenderer("heldout")
     rng = np.random.default_rng(seed)
     frames = [data.sample(rng) for _ in range(n)]
     out = {}
     for size in (416, 832):
-        det = Detector(image_size=size, conf_threshold=0.005, threads=1)
+        det = Detector(weights, image_size=size, conf_threshold=0.005, threads=1)
         preds = [[(d.box, d.score, d.class_id) for d in det(f.image)] for f in frames]
         m = evaluate_detections(preds, [frame_boxes(f) for f in frames], len(det.class_names))
         det.conf_threshold = 0.25
@@ -70,10 +70,10 @@ def person_metrics(n: int, seed: int) -> dict:
             "r_person_416": round(m.recall, 4), "fps_person_416": round(fps, 1)}
 
 
-def follow_metrics(n: int, seed: int) -> dict:
+def follow_metrics(n: int, seed: int, weights: str) -> dict:
     cam = CameraModel(width_px=640, height_px=480)
     views = list(follow_sequence(cam, n, seed))
-    det = Detector(image_size=416, threads=1)
+    det = Detector(weights, image_size=416, threads=1)
     pipe = VisionPipeline(cam, det, PipelineConfig(detect_every=3))
     proj = Projector(cam)
     fx = cam.focal_px[0]
@@ -129,14 +129,15 @@ def render_fps(n: int) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--weights", default=str(SHIPPED_WEIGHTS["tiny_yolo"]), help="drone detector weights (default: the shipped ones)")
     args = ap.parse_args()
     torch.set_num_threads(1)
     cv2.setNumThreads(1)
     n_det, n_follow, n_render = (120, 240, 60) if args.quick else (600, 900, 300)
-    det = detector_metrics(n_det, 777)
+    det = detector_metrics(n_det, 777, args.weights)
     person = person_metrics(n_det // 2, 778)
-    fol = follow_metrics(n_follow, 5)
-    det_backend = Detector().backend
+    fol = follow_metrics(n_follow, 5, args.weights)
+    det_backend = Detector(args.weights).backend
     m416, fps416 = det[416]
     m832, fps832 = det[832]
     print(json.dumps({

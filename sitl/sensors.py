@@ -177,9 +177,18 @@ def shared_ground() -> GroundScene:
     return make_ground(7)
 
 
-def _shipped_detector(image: np.ndarray) -> list:
-    """The shipped detector, loaded at its first frame (missions without vision never load torch)."""
-    return shared_detector()(image)
+class _SharedDetector:
+    """The shipped detector, loaded at its first use (missions without vision never load torch);
+    its attributes (class names, box refiner) are the loaded detector's."""
+
+    def __call__(self, image: np.ndarray) -> list:
+        return shared_detector()(image)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(shared_detector(), name)
+
+
+_shipped_detector = _SharedDetector()
 
 
 class ScenarioFrameSource:

@@ -1,4 +1,4 @@
-"""``chaser-bt train-detector`` and ``chaser-bt eval-detector`` (wired into chaser_bt/cli.py by add_command).
+"""``chaser-bt train-detector``, ``train-refiner`` and ``eval-detector`` (wired into chaser_bt/cli.py by add_command).
 
 Data folders are in YOLO layout (images/*.jpg, labels/*.txt, classes.txt); render them with
 ``python -m sitl.camera.dataset OUT --split train|heldout``.
@@ -61,7 +61,7 @@ def _train(args: argparse.Namespace) -> int:
     try:
         out = train_detector(TrainConfig(args.data, args.out, steps=args.steps, batch=args.batch, seed=args.seed, threads=args.threads,
                                          lr=args.lr, init_weights=args.init or "", small_box_px=args.small_box_px,
-                                         small_weight=args.small_weight), resume=not args.fresh)
+                                         small_weight=args.small_weight, obj_iou=args.obj_iou), resume=not args.fresh)
     except (ValueError, FileNotFoundError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
@@ -72,6 +72,32 @@ def _train(args: argparse.Namespace) -> int:
         print(f"ONNX copy written to {export_onnx(out, out.with_suffix('.onnx'))}")
     except ImportError:
         print("onnx is not installed: no ONNX copy (inference uses torch)")
+    return 0
+
+
+def _train_refiner(args: argparse.Namespace) -> int:
+    import torch
+
+    from chaser_bt.vision.detector.train import load_yolo_folder
+    from chaser_bt.vision.refine import RefinerConfig, make_refiner_set, train_refiner
+
+    torch.set_num_threads(args.threads)
+    config = RefinerConfig()
+    rng = np.random.default_rng(args.seed)
+    sets = []
+    try:
+        for folder in args.data:
+            if not (Path(folder) / "images").is_dir():
+                raise ValueError(f"--data {folder}: no images/ folder (YOLO layout expected)")
+            images, boxes, _ = load_yolo_folder(folder, 640)  # 640 x 480 frames stay at full resolution
+            sets.append(make_refiner_set(images, boxes, config, args.per_label, rng))
+            print(f"{folder}: {len(sets[-1][0])} crops", file=sys.stderr)
+    except (ValueError, FileNotFoundError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    crops, given, targets = (np.concatenate(parts) for parts in zip(*sets))
+    out = train_refiner(crops, given, targets, args.out, config, steps=args.steps, seed=args.seed)
+    print(f"refiner written to {out}")
     return 0
 
 
@@ -92,7 +118,7 @@ def _eval(args: argparse.Namespace) -> int:
 
 
 def add_command(subparsers) -> None:
-    """Add ``train-detector`` and ``eval-detector`` to the CLI's subparsers."""
+    """Add ``train-detector``, ``train-refiner`` and ``eval-detector`` to the CLI's subparsers."""
     t = subparsers.add_parser("train-detector", help="train the vision detector on a YOLO folder (seeded, resumable)")
     t.add_argument("--data", required=True, help="YOLO folder (python -m sitl.camera.dataset writes one)")
     t.add_argument("--out", default="detector.pt", help="weights file to write (a .ckpt beside it makes it resumable)")
@@ -105,7 +131,16 @@ def add_command(subparsers) -> None:
     t.add_argument("--init", default=None, help="fine-tune from these weights (same classes) instead of from scratch")
     t.add_argument("--small-box-px", type=float, default=0.0, help="over-sample images with a box narrower than this (416-scale px)")
     t.add_argument("--small-weight", type=float, default=3.0, help="how many times more often such images are drawn")
+    t.add_argument("--obj-iou", type=float, default=0.0, help="objectness target 1 - g + g * IoU of the predicted box (YOLOv5's gr)")
     t.set_defaults(handler=_train)
+    r = subparsers.add_parser("train-refiner", help="train the box refiner (second stage) on YOLO folders of full-size frames")
+    r.add_argument("--data", required=True, nargs="+", help="YOLO folders (python -m sitl.camera.dataset writes them)")
+    r.add_argument("--out", required=True, help="weights file; ship it beside the detector as <detector>_refiner.pt")
+    r.add_argument("--per-label", type=int, default=6, help="jittered crops per labelled target")
+    r.add_argument("--steps", type=int, default=4000)
+    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--threads", type=int, default=2)
+    r.set_defaults(handler=_train_refiner)
     e = subparsers.add_parser("eval-detector", help="11-point AP@0.5, IoU, P/R/F1 at 0.25 and frames/s on a YOLO folder")
     e.add_argument("--data", required=True)
     e.add_argument("--weights", default=None, help="default: the shipped weights")

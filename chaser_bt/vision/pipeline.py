@@ -71,6 +71,12 @@ class PipelineConfig:
         cue_gate_deg: a track's bearing may differ from the cue's by this much, plus three sigma of the
             cue's position error seen from the camera.
         detector_input_px: the detector's square input (the focus window's size in detector pixels).
+        reseed_min_score: with a detector whose scores predict the box's IoU (``scores_are_iou``), a
+            detection scoring less confirms a followed track without moving it
+            (:class:`chaser_bt.vision.trackers.TrackerBank`); ignored for other detectors.
+        refine_tracks: between detector frames, re-place the tracked boxes with the detector's box
+            refiner when it has one (:mod:`chaser_bt.vision.refine`): trackers keep the detection's
+            size and drift by a pixel or two a frame.
     """
 
     detect_every: int = 3
@@ -84,6 +90,8 @@ class PipelineConfig:
     target_on_ground: bool = False
     confirm_hits: int = 2
     max_misses: int = 2
+    reseed_min_score: float = 0.5
+    refine_tracks: bool = True
     reacquire_s: float = 2.0
     focus: bool = True
     focus_box_px: float = 32.0
@@ -119,7 +127,17 @@ class VisionPipeline:
         self.focused_frames = 0
 
     def _bank(self) -> TrackerBank:
+        self._bank_tuned = False
         return TrackerBank(self.config.tracker_kinds, max_misses=self.config.max_misses)
+
+    def _tune_bank(self) -> None:
+        """Give the trackers what the detector offers: its box refiner and, when its scores predict
+        the box's IoU, the reseed threshold. Done after the detector's first call, so a detector
+        that loads lazily (the simulator's shared one) has loaded."""
+        refiner = getattr(self.detector, "refiner", None) if self.config.refine_tracks else None
+        self.trackers.refine = None if refiner is None else refiner.boxes
+        self.trackers.reseed_min_score = self.config.reseed_min_score if getattr(self.detector, "scores_are_iou", False) else 0.0
+        self._bank_tuned = True
 
     def use_detector(self, detector: Callable[[np.ndarray], Sequence[Detection]], name: str = "",
                      classes: Sequence[str] | None = None, target_on_ground: bool | None = None) -> None:
@@ -152,6 +170,8 @@ class VisionPipeline:
         if self.frames % self.config.detect_every == 0:
             dets, region, judge = self._detect(image, ownship, att, cam, cue_enu)
             dets = [d for d in dets if not self.config.classes or d.class_name in self.config.classes]
+            if not self._bank_tuned:
+                self._tune_bank()
             tracks = self.trackers.correct(image, dets, frame.t, region, judge)
             self.detector_frames += 1
         else:

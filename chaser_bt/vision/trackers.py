@@ -100,10 +100,17 @@ class TrackerBank:
         max_size_ratio: largest ratio of the square roots of a detection's and a track's areas for them to agree.
         match_centre_sizes: a detection whose centre is within this many track box sizes (the larger side)
             of the track's centre agrees with it even without overlap.
+        reseed_min_score: a detection scoring less confirms a confirmed track (a hit) without moving its
+            box or reseeding its trackers: a detector whose score is the predicted box's IoU (trained with
+            ``obj_iou``) says by a low score that the box is badly placed (0: always reseed).
+        refine: re-places boxes the trackers moved (frame, (N, 4) boxes) -> (N, 4) boxes, e.g. the
+            detector's :class:`chaser_bt.vision.refine.BoxRefiner`; trackers keep the detection's size
+            and drift by a pixel or two a frame. None: the trackers' boxes as they are.
     """
 
     def __init__(self, kinds: Sequence[str] = ("mosse", "medianflow"), match_iou: float = 0.2, min_window_px: float = 32.0, max_tracks: int = 5,
-                 max_misses: int = 0, max_size_ratio: float = 1.8, match_centre_sizes: float = 1.0) -> None:
+                 max_misses: int = 0, max_size_ratio: float = 1.8, match_centre_sizes: float = 1.0,
+                 reseed_min_score: float = 0.0, refine: Callable[[np.ndarray, list], np.ndarray] | None = None) -> None:
         for k in kinds:
             make_tracker(k)
         self.kinds = tuple(kinds)
@@ -111,6 +118,8 @@ class TrackerBank:
         self.max_size_ratio = max_size_ratio
         self.match_iou = match_iou
         self.match_centre_sizes = match_centre_sizes
+        self.reseed_min_score = reseed_min_score
+        self.refine = refine
         self.min_window_px = min_window_px
         self.max_tracks = max_tracks
         self.tracks: list[Track] = []
@@ -171,11 +180,13 @@ class TrackerBank:
             j = int(order[0])
             used.add(j)
             d = detections[j]
-            track.box, track.class_name, track.score, track.t_detected, track.t = d.box, d.class_name, d.score, t, t
-            track.size = (d.box[2] - d.box[0], d.box[3] - d.box[1])
-            track.hits += 1
+            track.class_name, track.score, track.t_detected, track.t = d.class_name, d.score, t, t
             track.misses = 0
-            self._seed(frame, track)
+            if d.score >= self.reseed_min_score or track.hits < 2 or not self._move(frame, track, t):
+                track.box = d.box
+                track.size = (d.box[2] - d.box[0], d.box[3] - d.box[1])
+                self._seed(frame, track)
+            track.hits += 1
             kept.append(track)
         kept_ids = {id(tr) for tr in kept}
         for j, d in enumerate(detections):
@@ -192,21 +203,26 @@ class TrackerBank:
         """A frame between detections: move each track by its trackers (mean centre); drop tracks all trackers lost."""
         alive = []
         for track in self.tracks:
-            if not self.kinds:
+            if not self.kinds or self._move(frame, track, t):
                 alive.append(track)
-                continue
-            centres = []
-            for tr in track.trackers:
-                ok, (x, y, bw, bh) = tr.update(frame)
-                if ok:
-                    centres.append((x + bw / 2, y + bh / 2))
-            if not centres:
+            else:
                 self.pruned += 1
-                continue
-            cx, cy = np.mean(centres, axis=0)
-            sw, sh = track.size
-            track.box = (float(cx - sw / 2), float(cy - sh / 2), float(cx + sw / 2), float(cy + sh / 2))
-            track.t = t
-            alive.append(track)
         self.tracks = alive
         return self.tracks
+
+    def _move(self, frame: np.ndarray, track: Track, t: float) -> bool:
+        """Move ``track`` to its trackers' mean centre in ``frame``; False when every tracker lost it."""
+        centres = []
+        for tr in track.trackers:
+            ok, (x, y, bw, bh) = tr.update(frame)
+            if ok:
+                centres.append((x + bw / 2, y + bh / 2))
+        if not centres:
+            return False
+        cx, cy = np.mean(centres, axis=0)
+        sw, sh = track.size
+        track.box = (float(cx - sw / 2), float(cy - sh / 2), float(cx + sw / 2), float(cy + sh / 2))
+        if self.refine is not None:
+            track.box = tuple(float(v) for v in self.refine(frame, [track.box])[0])
+        track.t = t
+        return True

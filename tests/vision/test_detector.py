@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import math
 import numpy as np
 import pytest
 import torch
 
 from chaser_bt.vision.detector.evaluate import ap11, evaluate_detections, iou_matrix
-from chaser_bt.vision.detector.inference import DEFAULT_WEIGHTS, Detector, nms
+from chaser_bt.vision.detector.inference import DEFAULT_WEIGHTS, Detector, merge_boxes, nms
 from chaser_bt.vision.detector.loss import _assign, detection_loss, giou
 from chaser_bt.vision.detector.model import DetectorConfig, TinyYolo, decode
 
@@ -54,6 +55,35 @@ def test_network_shapes_and_a_finite_loss_with_and_without_targets():
     assert torch.isfinite(loss) and set(parts) == {"obj", "box", "cls"}
 
 
+def test_weighted_nms_averages_the_boxes_overlapping_a_kept_one_by_score():
+    boxes = np.array([[0.0, 0, 10, 10], [2, 0, 12, 10], [50, 50, 60, 60]])
+    scores = np.array([0.8, 0.2, 0.5])
+    # IoU of the first two: 80 / 120 = 0.67; the third overlaps neither.
+    merged = merge_boxes(boxes, scores, [0, 2], 0.5)
+    assert merged == pytest.approx(np.array([[0.4, 0, 10.4, 10], [50, 50, 60, 60]]))
+    assert merge_boxes(boxes, scores, [0, 2], 0.7) == pytest.approx(boxes[[0, 2]])
+
+
+def test_iou_aware_objectness_scores_a_cell_on_the_iou_of_its_box():
+    """A 4 x 4 grid of 8 px cells, every logit 0 except the width's (log 2): each cell predicts a
+    16 x 8 px box at its centre ((cell + 0.5) * 8), objectness p = 0.5. The assigned cells'
+    objectness target is 1 - g + g * IoU; the focal term 0.25 |y - p|^2 BCE(p, y) is summed by hand.
+    """
+    raw = torch.zeros(1, 7, 4, 4)
+    raw[0, 3] = math.log(2.0)  # width 16 px everywhere
+    target = torch.tensor([[0, 4.0, 8.0, 20.0, 16.0]])  # 16 x 8 centred (12, 12): cell (1, 1) plus neighbours
+    loss_1, parts_1 = detection_loss(raw, [target], 8, obj_iou=1.0)
+    loss_0, parts_0 = detection_loss(raw, [target], 8, obj_iou=0.0)
+    bce = lambda y: -(y * math.log(0.5) + (1 - y) * math.log(0.5))  # noqa: E731 (p = 0.5)
+    neg = 0.75 * 0.25 * bce(0.0) * (16 - 3)  # 13 unassigned cells, target 0
+    # Cell (1, 1) predicts 16 x 8 at the target's centre: IoU 1. Its neighbours (2, 1) and (1, 2)
+    # predict 16 x 8 boxes 8 px off: IoU 8*8 / (2*128 - 64) = 1/3 and 0 (the y-neighbour: 8 px down, no overlap).
+    ious = sorted([1.0, (16 - 8) * 8 / (2 * 128 - (16 - 8) * 8), 0.0])
+    assert parts_0["obj"] == pytest.approx((neg + 3 * 0.25 * 0.25 * bce(1.0)) / 3, rel=1e-5)
+    expect = (neg + sum(0.25 * (y - 0.5) ** 2 * bce(y) for y in ious)) / 3
+    assert parts_1["obj"] == pytest.approx(expect, rel=1e-5)
+
+
 def test_shipped_weights_load_by_default_and_detect_targets_on_a_fresh_heldout_set():
     from sitl.camera.dataset import DatasetRenderer, frame_boxes
 
@@ -73,8 +103,8 @@ def test_onnx_backend_gives_the_torch_detections():
 
     assert DEFAULT_ONNX.exists()
     img = (np.random.default_rng(0).random((480, 640, 3)) * 255).astype(np.uint8)
-    a = Detector(conf_threshold=0.001, backend="torch")(img)
-    b = Detector(conf_threshold=0.001, backend="onnx")(img)
+    a = Detector(conf_threshold=0.001, backend="torch", refiner=None)(img)  # the network alone: the refiner runs in torch either way
+    b = Detector(conf_threshold=0.001, backend="onnx", refiner=None)(img)
     assert len(a) == len(b) > 0
     for x, y in zip(a, b):
         assert x.class_id == y.class_id and x.score == pytest.approx(y.score, abs=1e-4)

@@ -128,3 +128,31 @@ def test_only_tracks_the_detector_could_see_are_pruned():
     # The whole frame at a coarse scale (judge=False) prunes nothing; judged, the unseen track goes.
     assert len(bank.correct(_scene(0, 0), [], 0.2, judge=False)) == 2
     assert bank.correct(_scene(0, 0), [], 0.3) == []
+
+
+def test_a_low_scoring_detection_confirms_a_followed_track_without_moving_it():
+    """With reseed_min_score, a detection scoring less (an IoU-scoring detector's badly placed box)
+    counts as a hit but the track keeps the box its trackers follow; a confident one reseeds it."""
+    bank = TrackerBank(["kcf"], reseed_min_score=0.5)
+    _confirmed(bank)
+    hits = bank.tracks[0].hits
+    off = Detection((104.0, 97.0, 128.0, 121.0), 0.3, 0, "s1000")  # overlaps the target, misplaced
+    (track,) = bank.correct(_scene(100, 100), [off], 1.0)
+    assert track.hits == hits + 1 and track.t_detected == 1.0
+    assert track.centre == pytest.approx((110.0, 110.0), abs=1.0)  # the trackers' box, not the detection's (116, 109)
+    (track,) = bank.correct(_scene(100, 100), [Detection(off.box, 0.9, 0, "s1000")], 2.0)
+    assert track.box == off.box
+
+
+def test_tracked_boxes_go_through_the_refine_hook_between_detections():
+    seen = []
+
+    def refine(frame, boxes):
+        seen.append(np.asarray(boxes, float))
+        return np.asarray(boxes, float) + [1.0, 0.0, 1.0, 0.0]  # one pixel right
+
+    bank = TrackerBank(["kcf"], refine=refine)
+    bank.correct(_scene(100, 100), [_det(100, 100)], 0.0)
+    (track,) = bank.advance(_scene(102, 100), 0.1)
+    assert len(seen) == 1 and seen[0][0] == pytest.approx([102, 100, 122, 120], abs=3.0)
+    assert track.box == pytest.approx(tuple(seen[0][0] + [1.0, 0.0, 1.0, 0.0]))

@@ -16,9 +16,11 @@ import torch
 
 from chaser_bt.vision.detection import Detection
 from chaser_bt.vision.detector.augment import letterbox
+from chaser_bt.vision.detector.evaluate import iou_matrix
 from chaser_bt.vision.detector.model import DetectorConfig, TinyYolo, decode
+from chaser_bt.vision.refine import BoxRefiner, refiner_path
 
-__all__ = ["Detection", "Detector", "DEFAULT_WEIGHTS", "DEFAULT_ONNX", "SHIPPED_WEIGHTS", "shipped_detector", "load_model", "nms", "export_onnx"]
+__all__ = ["Detection", "Detector", "DEFAULT_WEIGHTS", "DEFAULT_ONNX", "SHIPPED_WEIGHTS", "shipped_detector", "load_model", "nms", "merge_boxes", "export_onnx"]
 
 _WEIGHTS_DIR = Path(__file__).resolve().parent.parent / "weights"
 DEFAULT_WEIGHTS = _WEIGHTS_DIR / "tiny_yolo.pt"
@@ -28,12 +30,19 @@ SHIPPED_WEIGHTS: dict[str, Path] = {"tiny_yolo": DEFAULT_WEIGHTS, "person_yolo":
 _MAX_NMS = 300
 
 
-def load_model(path: str | Path = DEFAULT_WEIGHTS) -> TinyYolo:
-    """The detector with weights from ``path`` (a file saved by training), in eval mode, float32."""
+def _load_blob(path: str | Path) -> dict:
     p = Path(path)
     if not p.exists():
         raise FileNotFoundError(f"detector weights not found: {p}")
-    blob = torch.load(p, map_location="cpu", weights_only=False)
+    return torch.load(p, map_location="cpu", weights_only=False)
+
+
+def load_model(path: str | Path = DEFAULT_WEIGHTS) -> TinyYolo:
+    """The detector with weights from ``path`` (a file saved by training), in eval mode, float32."""
+    return _model(_load_blob(path))
+
+
+def _model(blob: dict) -> TinyYolo:
     model = TinyYolo(DetectorConfig.from_dict(blob["config"]))
     model.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in blob["state_dict"].items()})
     return model.eval()
@@ -55,6 +64,13 @@ def nms(boxes: np.ndarray, scores: np.ndarray, iou_threshold: float) -> list[int
     return keep
 
 
+def merge_boxes(boxes: np.ndarray, scores: np.ndarray, keep: list[int], merge_iou: float) -> np.ndarray:
+    """Weighted NMS: for each kept index, the score-weighted mean of the boxes overlapping it by ``merge_iou`` or more."""
+    kept = boxes[keep]
+    w = (iou_matrix(kept, boxes) >= merge_iou) * scores[None, :]
+    return (w @ boxes) / w.sum(1, keepdims=True)
+
+
 class Detector:
     """Frames in, :class:`Detection` lists out.
 
@@ -65,6 +81,12 @@ class Detector:
         iou_threshold: NMS overlap.
         threads: torch (process-wide) or onnxruntime intra-op threads.
         multi_label: report every class above the threshold for a box, not just the best (for AP).
+        merge_iou: weighted NMS (0 = off): a kept box becomes the score-weighted mean of the candidates
+            overlapping it by at least this much (the neighbouring cells that also predict the target),
+            which places it better than any one of them.
+        refiner: the second stage re-placing each box from a full-resolution crop
+            (:class:`chaser_bt.vision.refine.BoxRefiner`): "auto" = the one shipped beside ``weights``
+            when there is one, a path, or None for none.
         backend: "torch"; "onnx" to run ``onnx_path`` with onnxruntime (optional dependency, measured
             faster on this CPU); "auto" = onnx when onnxruntime is installed and ``onnx_path`` exists
             and is not older than ``weights``.
@@ -73,7 +95,8 @@ class Detector:
 
     def __init__(self, weights: str | Path = DEFAULT_WEIGHTS, image_size: int = 416, conf_threshold: float = 0.25,
                  iou_threshold: float = 0.45, threads: int = 1, max_detections: int = 20, backend: str = "auto",
-                 onnx_path: str | Path | None = None, multi_label: bool = False) -> None:
+                 onnx_path: str | Path | None = None, multi_label: bool = False, merge_iou: float = 0.0,
+                 refiner: str | Path | None = "auto") -> None:
         if image_size % 32:
             raise ValueError(f"image_size must be a multiple of 32, got {image_size}")
         if backend not in ("torch", "onnx", "auto"):
@@ -84,7 +107,10 @@ class Detector:
             backend = "onnx" if fresh and _have_onnxruntime() else "torch"
         self.backend = backend
         torch.set_num_threads(threads)
-        self.model = load_model(weights)
+        blob = _load_blob(weights)
+        self.model = _model(blob)
+        #: The weights were trained to score a box by its predicted IoU (``obj_iou``): a low score means a badly placed box.
+        self.scores_are_iou = float(blob.get("obj_iou", 0.0)) > 0.0
         self.class_names = self.model.config.class_names
         self._session = None
         if backend == "onnx":
@@ -99,6 +125,12 @@ class Detector:
         self.iou_threshold = iou_threshold
         self.max_detections = max_detections
         self.multi_label = multi_label
+        if not 0.0 <= merge_iou <= 1.0:
+            raise ValueError(f"merge_iou must be in [0, 1], got {merge_iou}")
+        self.merge_iou = merge_iou
+        if refiner == "auto":
+            refiner = refiner_path(weights) if refiner_path(weights).exists() else None
+        self.refiner = BoxRefiner(refiner) if refiner is not None else None
 
     def __call__(self, frame_bgr: np.ndarray) -> list[Detection]:
         img, scale, (px, py) = letterbox(frame_bgr, self.image_size)
@@ -118,15 +150,19 @@ class Detector:
         m = np.flatnonzero(score >= self.conf_threshold)
         m = m[np.argsort(-score[m])[:_MAX_NMS]]  # the best few hundred candidates go to the (quadratic) NMS
         boxes, score, cls = boxes[m], score[m], cls[m]
-        offset = cls[:, None] * 1e5 if self.multi_label else 0.0  # per-class NMS by shifting classes apart
+        offset = cls[:, None] * 1e5 if self.multi_label else np.zeros((len(cls), 1))  # per-class NMS by shifting classes apart
         keep = nms(boxes + offset, score, self.iou_threshold)[: self.max_detections]
+        if self.merge_iou > 0 and keep:
+            boxes = merge_boxes(boxes + offset, score, keep, self.merge_iou) - offset[keep]
+            score, cls = score[keep], cls[keep]
+            keep = list(range(len(keep)))
         h, w = frame_bgr.shape[:2]
         dets = []
         for i in keep:
             b = (boxes[i] - np.array([px, py, px, py])) / scale
             b = np.clip(b, [0, 0, 0, 0], [w, h, w, h])
             dets.append(Detection((float(b[0]), float(b[1]), float(b[2]), float(b[3])), float(score[i]), int(cls[i]), self.class_names[int(cls[i])]))
-        return dets
+        return dets if self.refiner is None else self.refiner(frame_bgr, dets)
 
 
 def shipped_detector(name: str, **kwargs) -> Detector:

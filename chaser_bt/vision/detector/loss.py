@@ -2,7 +2,10 @@
 
 Assignment follows YOLOv5 at one scale: a ground-truth box is predicted by the stride-8 cell holding
 its centre and the two neighbouring cells nearest that centre (the decode reaches them). Sums are
-normalised by the number of assigned cells (FCOS).
+normalised by the number of assigned cells (FCOS). ``obj_iou`` is YOLOv5's ``gr``: an assigned cell's
+objectness target is ``1 - obj_iou + obj_iou * IoU`` of its predicted box, so a badly placed box
+learns to score lower than a well placed one (the focal term takes soft targets as in quality focal
+loss, Li et al. 2020).
 """
 
 from __future__ import annotations
@@ -53,22 +56,23 @@ def _assign(targets: list[torch.Tensor], h: int, w: int, stride: int) -> tuple[t
     return torch.tensor(bi), torch.tensor(ci), torch.stack(rows)
 
 
-def detection_loss(raw: torch.Tensor, targets: list[torch.Tensor], stride: int) -> tuple[torch.Tensor, dict[str, float]]:
+def detection_loss(raw: torch.Tensor, targets: list[torch.Tensor], stride: int, obj_iou: float = 0.0) -> tuple[torch.Tensor, dict[str, float]]:
     """Total loss and its parts for raw head output (B, 5 + C, H, W) and per-image (N, 5) targets."""
     b, c, h, w = raw.shape
     flat = raw.permute(0, 2, 3, 1).reshape(b, h * w, c)
     bi, ci, rows = _assign(targets, h, w, stride)
     npos = max(len(bi), 1)
     obj_t = torch.zeros(b, h * w)
-    if len(bi):
-        obj_t[bi, ci] = 1.0
-    p = torch.sigmoid(flat[..., 0])
-    bce = nn.functional.binary_cross_entropy_with_logits(flat[..., 0], obj_t, reduction="none")
-    pt = p * obj_t + (1 - p) * (1 - obj_t)
-    alpha = 0.25 * obj_t + 0.75 * (1 - obj_t)
-    obj_loss = (alpha * (1 - pt) ** 2 * bce).sum() / npos
+    positive = torch.zeros(b, h * w)
     if len(bi):
         boxes = decode(raw, stride)[bi, ci, :4]
+        obj_t[bi, ci] = 1.0 - obj_iou + obj_iou * box_iou(boxes.detach(), rows[:, 1:5]).clamp(0.0, 1.0)
+        positive[bi, ci] = 1.0
+    p = torch.sigmoid(flat[..., 0])
+    bce = nn.functional.binary_cross_entropy_with_logits(flat[..., 0], obj_t, reduction="none")
+    alpha = 0.25 * positive + 0.75 * (1 - positive)
+    obj_loss = (alpha * (obj_t - p).abs() ** 2 * bce).sum() / npos
+    if len(bi):
         box_loss = (1.0 - giou(boxes, rows[:, 1:5])).mean()
         cls_t = nn.functional.one_hot(rows[:, 0].long(), c - 5).float()
         cls_loss = nn.functional.binary_cross_entropy_with_logits(flat[bi, ci, 5:], cls_t)

@@ -6,7 +6,8 @@ each batch is made of mosaics (4 images, random scale) with HSV jitter and horiz
 Optimiser: AdamW with a linear warm-up and a cosine decay; an exponential moving average of the
 weights (YOLOv5) is what gets saved. ``init_weights`` fine-tunes from a saved model (same classes)
 instead of starting from scratch; ``small_box_px`` > 0 draws the images holding a box narrower than
-that ``small_weight`` times as often (small targets are the common misses).
+that ``small_weight`` times as often (small targets are the common misses); ``obj_iou`` > 0 makes
+objectness learn the predicted box's IoU (:func:`chaser_bt.vision.detector.loss.detection_loss`).
 """
 
 from __future__ import annotations
@@ -52,6 +53,7 @@ class TrainConfig:
     init_weights: str = ""
     small_box_px: float = 0.0
     small_weight: float = 3.0
+    obj_iou: float = 0.0
 
 
 def load_yolo_folder(data_dir: str | Path, image_size: int) -> tuple[list[np.ndarray], list[np.ndarray], tuple[str, ...]]:
@@ -145,7 +147,7 @@ def train_detector(cfg: TrainConfig, resume: bool = True, progress=sys.stderr) -
         for g in opt.param_groups:
             g["lr"] = lr
         x, ts = _batch(images, boxes, cfg, rng, p_small)
-        loss, parts = detection_loss(model(x), ts, det_cfg.stride)
+        loss, parts = detection_loss(model(x), ts, det_cfg.stride, cfg.obj_iou)
         opt.zero_grad()
         loss.backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
@@ -168,11 +170,12 @@ def train_detector(cfg: TrainConfig, resume: bool = True, progress=sys.stderr) -
             out.parent.mkdir(parents=True, exist_ok=True)
             torch.save({"model": model.state_dict(), "ema": ema.state_dict(), "opt": opt.state_dict(), "rng": rng.bit_generator.state,
                         "torch_rng": torch.get_rng_state(), "step": step}, ckpt)
-            save_weights(ema, out, step)
+            save_weights(ema, out, step, cfg.obj_iou)
     return out
 
 
-def save_weights(model: TinyYolo, path: str | Path, step: int) -> None:
-    """The shipped file: config and half-precision weights (loads back as float32)."""
+def save_weights(model: TinyYolo, path: str | Path, step: int, obj_iou: float = 0.0) -> None:
+    """The shipped file: config, half-precision weights (loads back as float32) and ``obj_iou``
+    (the last training's; > 0 means scores predict the box's IoU)."""
     sd = {k: (v.half() if v.dtype == torch.float32 else v) for k, v in model.state_dict().items()}
-    torch.save({"config": model.config.to_dict(), "state_dict": sd, "step": step}, path)
+    torch.save({"config": model.config.to_dict(), "state_dict": sd, "step": step, "obj_iou": obj_iou}, path)
