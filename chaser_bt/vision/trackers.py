@@ -12,7 +12,10 @@ target together with the road under it) neither reseeds it nor starts a track. A
 more than its own width between frames, so a detection also agrees with a track when its centre is
 within ``match_centre_sizes`` of the track's box size. Only tracks the detector could have seen are
 judged: a track outside the detector's ``region`` (a focus window), or any track when the detector
-looked at the whole frame at a coarser scale (``judge=False``), is carried unchanged.
+looked at the whole frame at a coarser scale (``judge=False``), is carried unchanged. A detector
+whose score is its box's IoU can say a box is badly placed: below ``reseed_min_score`` a matching
+detection confirms a followed track but leaves it on its trackers. ``refine`` (the detector's box
+refiner) re-places every box the trackers moved.
 
 Trackers in the installed OpenCV (opencv-contrib 5.0): cv2.TrackerKCF, TrackerCSRT, TrackerMIL
 (and the learned DaSiamRPN / Nano / Vit, which need model files we do not ship); cv2.legacy adds

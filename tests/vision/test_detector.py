@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from chaser_bt.vision.detector.evaluate import ap11, evaluate_detections, iou_matrix
-from chaser_bt.vision.detector.inference import DEFAULT_WEIGHTS, Detector, merge_boxes, nms
+from chaser_bt.vision.detector.inference import DEFAULT_WEIGHTS, Detector, nms
 from chaser_bt.vision.detector.loss import _assign, detection_loss, giou
 from chaser_bt.vision.detector.model import DetectorConfig, TinyYolo, decode
 
@@ -53,15 +53,6 @@ def test_network_shapes_and_a_finite_loss_with_and_without_targets():
     loss, parts = detection_loss(raw, [torch.tensor([[1, 10.0, 10.0, 30.0, 40.0]]), torch.zeros(0, 5)], 8)
     loss.backward()
     assert torch.isfinite(loss) and set(parts) == {"obj", "box", "cls"}
-
-
-def test_weighted_nms_averages_the_boxes_overlapping_a_kept_one_by_score():
-    boxes = np.array([[0.0, 0, 10, 10], [2, 0, 12, 10], [50, 50, 60, 60]])
-    scores = np.array([0.8, 0.2, 0.5])
-    # IoU of the first two: 80 / 120 = 0.67; the third overlaps neither.
-    merged = merge_boxes(boxes, scores, [0, 2], 0.5)
-    assert merged == pytest.approx(np.array([[0.4, 0, 10.4, 10], [50, 50, 60, 60]]))
-    assert merge_boxes(boxes, scores, [0, 2], 0.7) == pytest.approx(boxes[[0, 2]])
 
 
 def test_iou_aware_objectness_scores_a_cell_on_the_iou_of_its_box():

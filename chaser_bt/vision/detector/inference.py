@@ -1,4 +1,5 @@
-"""Run the trained detector on BGR frames: letterbox, forward, decode, confidence filter, NMS.
+"""Run the trained detector on BGR frames: letterbox, forward, decode, confidence filter, NMS, and
+the box refiner shipped beside the weights when there is one (:mod:`chaser_bt.vision.refine`).
 
 The default weights ship in ``chaser_bt/vision/weights/tiny_yolo.pt`` and load without any
 download; :data:`SHIPPED_WEIGHTS` names every shipped model (``tiny_yolo``: s1000 and phantom;
@@ -16,11 +17,10 @@ import torch
 
 from chaser_bt.vision.detection import Detection
 from chaser_bt.vision.detector.augment import letterbox
-from chaser_bt.vision.detector.evaluate import iou_matrix
 from chaser_bt.vision.detector.model import DetectorConfig, TinyYolo, decode
 from chaser_bt.vision.refine import BoxRefiner, refiner_path
 
-__all__ = ["Detection", "Detector", "DEFAULT_WEIGHTS", "DEFAULT_ONNX", "SHIPPED_WEIGHTS", "shipped_detector", "load_model", "nms", "merge_boxes", "export_onnx"]
+__all__ = ["Detection", "Detector", "DEFAULT_WEIGHTS", "DEFAULT_ONNX", "SHIPPED_WEIGHTS", "shipped_detector", "load_model", "nms", "export_onnx"]
 
 _WEIGHTS_DIR = Path(__file__).resolve().parent.parent / "weights"
 DEFAULT_WEIGHTS = _WEIGHTS_DIR / "tiny_yolo.pt"
@@ -64,13 +64,6 @@ def nms(boxes: np.ndarray, scores: np.ndarray, iou_threshold: float) -> list[int
     return keep
 
 
-def merge_boxes(boxes: np.ndarray, scores: np.ndarray, keep: list[int], merge_iou: float) -> np.ndarray:
-    """Weighted NMS: for each kept index, the score-weighted mean of the boxes overlapping it by ``merge_iou`` or more."""
-    kept = boxes[keep]
-    w = (iou_matrix(kept, boxes) >= merge_iou) * scores[None, :]
-    return (w @ boxes) / w.sum(1, keepdims=True)
-
-
 class Detector:
     """Frames in, :class:`Detection` lists out.
 
@@ -81,9 +74,6 @@ class Detector:
         iou_threshold: NMS overlap.
         threads: torch (process-wide) or onnxruntime intra-op threads.
         multi_label: report every class above the threshold for a box, not just the best (for AP).
-        merge_iou: weighted NMS (0 = off): a kept box becomes the score-weighted mean of the candidates
-            overlapping it by at least this much (the neighbouring cells that also predict the target),
-            which places it better than any one of them.
         refiner: the second stage re-placing each box from a full-resolution crop
             (:class:`chaser_bt.vision.refine.BoxRefiner`): "auto" = the one shipped beside ``weights``
             when there is one, a path, or None for none.
@@ -95,7 +85,7 @@ class Detector:
 
     def __init__(self, weights: str | Path = DEFAULT_WEIGHTS, image_size: int = 416, conf_threshold: float = 0.25,
                  iou_threshold: float = 0.45, threads: int = 1, max_detections: int = 20, backend: str = "auto",
-                 onnx_path: str | Path | None = None, multi_label: bool = False, merge_iou: float = 0.0,
+                 onnx_path: str | Path | None = None, multi_label: bool = False,
                  refiner: str | Path | None = "auto") -> None:
         if image_size % 32:
             raise ValueError(f"image_size must be a multiple of 32, got {image_size}")
@@ -125,9 +115,6 @@ class Detector:
         self.iou_threshold = iou_threshold
         self.max_detections = max_detections
         self.multi_label = multi_label
-        if not 0.0 <= merge_iou <= 1.0:
-            raise ValueError(f"merge_iou must be in [0, 1], got {merge_iou}")
-        self.merge_iou = merge_iou
         if refiner == "auto":
             refiner = refiner_path(weights) if refiner_path(weights).exists() else None
         self.refiner = BoxRefiner(refiner) if refiner is not None else None
@@ -150,12 +137,8 @@ class Detector:
         m = np.flatnonzero(score >= self.conf_threshold)
         m = m[np.argsort(-score[m])[:_MAX_NMS]]  # the best few hundred candidates go to the (quadratic) NMS
         boxes, score, cls = boxes[m], score[m], cls[m]
-        offset = cls[:, None] * 1e5 if self.multi_label else np.zeros((len(cls), 1))  # per-class NMS by shifting classes apart
+        offset = cls[:, None] * 1e5 if self.multi_label else 0.0  # per-class NMS by shifting classes apart
         keep = nms(boxes + offset, score, self.iou_threshold)[: self.max_detections]
-        if self.merge_iou > 0 and keep:
-            boxes = merge_boxes(boxes + offset, score, keep, self.merge_iou) - offset[keep]
-            score, cls = score[keep], cls[keep]
-            keep = list(range(len(keep)))
         h, w = frame_bgr.shape[:2]
         dets = []
         for i in keep:
