@@ -11,7 +11,6 @@ classes it knows, as ``<detector>_refiner.pt`` (:func:`refiner_path`).
 
 from __future__ import annotations
 
-import logging
 import math
 import sys
 from dataclasses import asdict, dataclass
@@ -24,11 +23,9 @@ import torch
 from torch import nn
 
 from chaser_bt.vision.detection import Detection
+from chaser_bt.vision.detector.model import conv_bn_act
 
 __all__ = ["RefinerConfig", "BoxRefinerNet", "BoxRefiner", "refiner_path", "crop_window", "jitter_boxes", "make_refiner_set", "train_refiner"]
-
-log = logging.getLogger(__name__)
-
 
 
 def refiner_path(detector_weights: str | Path) -> Path:
@@ -54,10 +51,6 @@ class RefinerConfig:
         return cls(int(d["input_px"]), float(d["context"]), float(d["min_side_px"]), tuple(d["widths"]))
 
 
-def _conv(cin: int, cout: int, s: int) -> nn.Sequential:
-    return nn.Sequential(nn.Conv2d(cin, cout, 3, s, 1, bias=False), nn.BatchNorm2d(cout), nn.LeakyReLU(0.1, inplace=True))
-
-
 class BoxRefinerNet(nn.Module):
     """(B, 3, P, P) crops in [0, 1] and (B, 4) the boxes they were cut around -> (B, 4) refined boxes;
     boxes are x0, y0, x1, y1 as fractions of the crop side, and the network predicts the correction."""
@@ -67,7 +60,7 @@ class BoxRefinerNet(nn.Module):
         self.config = config
         layers, cin = [], 3
         for w in config.widths:
-            layers += [_conv(cin, w, 2), _conv(w, w, 1)]
+            layers += [conv_bn_act(cin, w, 3, 2), conv_bn_act(w, w, 3, 1)]
             cin = w
         self.features = nn.Sequential(*layers)
         cells = (config.input_px // 2 ** len(config.widths)) ** 2

@@ -102,6 +102,24 @@ def test_cli_commands_parse_and_refuse_a_missing_folder(tmp_path, capsys):
     assert args.handler(args) == 2 and "no images/ folder" in capsys.readouterr().err
     args = parser.parse_args(["train-detector", "--data", str(tmp_path / "nope")])
     assert args.handler(args) == 2
+    args = parser.parse_args(["train-refiner", "--data", str(tmp_path / "nope"), "--out", str(tmp_path / "r.pt")])
+    assert args.handler(args) == 2 and "no images/ folder" in capsys.readouterr().err
+
+
+def test_train_refiner_writes_a_refiner_the_detector_can_load(tmp_path, capsys):
+    from chaser_bt.vision.commands import add_command
+    from chaser_bt.vision.detector.inference import Detector
+    from sitl.camera.dataset import write_dataset
+
+    write_dataset(tmp_path / "d", 4, seed=4, split="train", ground_size_px=256)
+    parser = argparse.ArgumentParser()
+    add_command(parser.add_subparsers())
+    out = tmp_path / "r.pt"
+    args = parser.parse_args(["train-refiner", "--data", str(tmp_path / "d"), "--out", str(out), "--steps", "3", "--threads", "1"])
+    assert args.handler(args) == 0 and str(out) in capsys.readouterr().out
+    det = Detector(refiner=out)
+    img = np.full((480, 640, 3), 120, np.uint8)
+    assert det.refiner is not None and det.refiner.boxes(img, [(100.0, 100.0, 140.0, 120.0)]).shape == (1, 4)
 
 
 def test_eval_detector_prints_model_card_metrics_on_a_rendered_folder(tmp_path, capsys):

@@ -13,7 +13,7 @@ from dataclasses import asdict, dataclass
 import torch
 from torch import nn
 
-__all__ = ["DetectorConfig", "TinyYolo"]
+__all__ = ["DetectorConfig", "TinyYolo", "conv_bn_act"]
 
 
 @dataclass(frozen=True)
@@ -33,7 +33,8 @@ class DetectorConfig:
         return cls(widths=tuple(d["widths"]), num_classes=int(d["num_classes"]), class_names=tuple(d["class_names"]), stride=int(d["stride"]))
 
 
-def _conv(cin: int, cout: int, k: int = 3, s: int = 1) -> nn.Sequential:
+def conv_bn_act(cin: int, cout: int, k: int = 3, s: int = 1) -> nn.Sequential:
+    """Conv (no bias), batch norm, leaky ReLU 0.1: the darknet block."""
     return nn.Sequential(nn.Conv2d(cin, cout, k, s, k // 2, bias=False), nn.BatchNorm2d(cout), nn.LeakyReLU(0.1, inplace=True))
 
 
@@ -44,13 +45,13 @@ class TinyYolo(nn.Module):
         super().__init__()
         w = config.widths
         self.config = config
-        self.stem = nn.Sequential(_conv(3, w[0], 3, 2), _conv(w[0], w[1], 3, 2))          # /4
-        self.s8 = nn.Sequential(_conv(w[1], w[2], 3, 2), _conv(w[2], w[2]))                 # /8
-        self.s16 = nn.Sequential(_conv(w[2], w[3], 3, 2), _conv(w[3], w[3]))                # /16
-        self.s32 = nn.Sequential(_conv(w[3], w[4], 3, 2), _conv(w[4], w[4]))                # /32
-        self.lat32 = _conv(w[4], w[2], 1)
-        self.lat16 = _conv(w[3], w[2], 1)
-        self.fuse = nn.Sequential(_conv(2 * w[2], w[2], 3), _conv(w[2], w[2], 3))
+        self.stem = nn.Sequential(conv_bn_act(3, w[0], 3, 2), conv_bn_act(w[0], w[1], 3, 2))          # /4
+        self.s8 = nn.Sequential(conv_bn_act(w[1], w[2], 3, 2), conv_bn_act(w[2], w[2]))                 # /8
+        self.s16 = nn.Sequential(conv_bn_act(w[2], w[3], 3, 2), conv_bn_act(w[3], w[3]))                # /16
+        self.s32 = nn.Sequential(conv_bn_act(w[3], w[4], 3, 2), conv_bn_act(w[4], w[4]))                # /32
+        self.lat32 = conv_bn_act(w[4], w[2], 1)
+        self.lat16 = conv_bn_act(w[3], w[2], 1)
+        self.fuse = nn.Sequential(conv_bn_act(2 * w[2], w[2], 3), conv_bn_act(w[2], w[2], 3))
         self.head = nn.Conv2d(w[2], 5 + config.num_classes, 1)
         nn.init.constant_(self.head.bias[0], -4.6)  # start with objectness ~ 1 %
 
