@@ -22,7 +22,9 @@ def test_written_dataset_round_trips_its_labels(tmp_path):
 
 
 def test_training_and_heldout_splits_share_no_ground():
-    assert not set(SPLITS["train"].ground_seeds) & set(SPLITS["heldout"].ground_seeds)
+    for train in ("train", "train_wide"):
+        assert not set(SPLITS[train].ground_seeds) & set(SPLITS["heldout"].ground_seeds)
+    assert 1003 not in SPLITS["train_wide"].ground_seeds  # the follow benchmark's ground
 
 
 def test_mosaic_keeps_boxes_on_their_pixels():

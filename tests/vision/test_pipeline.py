@@ -144,3 +144,24 @@ def test_after_losing_the_target_the_track_nearest_its_last_bearing_is_picked():
     # With no recent estimate to go by, the surer track wins.
     est = _run(VisionPipeline(cam, _Script(script), PipelineConfig(detect_every=1, tracker_kinds=(), focus=False, reacquire_s=0.0)), 4)
     assert est[3].bearing_enu == pytest.approx(proj.bearing_enu(np.array([[30.0, 30.0]]), Rotation.identity())[0], abs=1e-9)
+
+
+def test_the_trackers_get_the_detectors_refiner_and_its_reseed_rule_only_if_its_scores_are_ious():
+    class _Refiner:
+        def boxes(self, image, boxes):
+            return np.asarray(boxes, float)
+
+    cam = CameraModel(width_px=320, height_px=240, tilt_rad=0.0)
+    for iou_scores, reseed in ((True, 0.5), (False, 0.0)):
+        det = _Script([[((150.0, 110.0, 170.0, 130.0), 0.8)]])
+        det.refiner, det.scores_are_iou = _Refiner(), iou_scores
+        pipe = VisionPipeline(cam, det, PipelineConfig(detect_every=1, focus=False))
+        _run(pipe, 1)
+        assert pipe.trackers.reseed_min_score == reseed
+        assert pipe.trackers.refine.__self__ is det.refiner
+    plain = VisionPipeline(cam, _Script([[]]), PipelineConfig(detect_every=1, focus=False))  # a detector offering neither
+    _run(plain, 1)
+    assert plain.trackers.refine is None and plain.trackers.reseed_min_score == 0.0
+    off = VisionPipeline(cam, det, PipelineConfig(detect_every=1, focus=False, refine_tracks=False))
+    _run(off, 1)
+    assert off.trackers.refine is None
