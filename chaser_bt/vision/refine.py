@@ -87,6 +87,11 @@ def _crops(image: np.ndarray, windows: Sequence[tuple[float, float, float]], px:
     return out
 
 
+def _fractions(boxes: np.ndarray, windows: np.ndarray) -> np.ndarray:
+    """(N, 4) frame-pixel boxes as fractions of their (N, 3) x0, y0, side crop windows."""
+    return (boxes - windows[:, [0, 1, 0, 1]]) / windows[:, [2, 2, 2, 2]]
+
+
 def _to_tensor(crops: np.ndarray) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(crops[..., ::-1])).permute(0, 3, 1, 2).float().div_(255.0)
 
@@ -118,7 +123,7 @@ class BoxRefiner:
         old = np.asarray(boxes, float)
         windows = [crop_window(b, self.config) for b in old]
         w = np.array(windows, float)
-        given = torch.from_numpy(((old - w[:, [0, 1, 0, 1]]) / w[:, [2, 2, 2, 2]]).astype(np.float32))
+        given = torch.from_numpy(_fractions(old, w).astype(np.float32))
         with torch.inference_mode():
             frac = self.net(_to_tensor(_crops(image, windows, self.config.input_px)), given).numpy()
         out = w[:, [0, 1, 0, 1]] + frac * w[:, [2, 2, 2, 2]]
@@ -159,8 +164,8 @@ def make_refiner_set(images: Sequence[np.ndarray], boxes: Sequence[np.ndarray], 
             windows = [crop_window(b, config) for b in jittered]
             crops.append(_crops(image, windows, config.input_px))
             w = np.array(windows, float)
-            given.append((jittered - w[:, [0, 1, 0, 1]]) / w[:, [2, 2, 2, 2]])
-            targets.append((lb[None, :] - w[:, [0, 1, 0, 1]]) / w[:, [2, 2, 2, 2]])
+            given.append(_fractions(jittered, w))
+            targets.append(_fractions(lb[None, :], w))
     if not crops:
         raise ValueError("no labelled targets in the frames given")
     return np.concatenate(crops), np.concatenate(given).astype(np.float32), np.concatenate(targets).astype(np.float32)
@@ -168,7 +173,7 @@ def make_refiner_set(images: Sequence[np.ndarray], boxes: Sequence[np.ndarray], 
 
 def train_refiner(crops: np.ndarray, given: np.ndarray, targets: np.ndarray, out_path: str | Path, config: RefinerConfig = RefinerConfig(),
                   steps: int = 3000, batch: int = 128, lr: float = 2e-3, seed: int = 0, progress=sys.stderr) -> Path:
-    """Fit :class:`BoxRefinerNet` (L1 on the box fractions, horizontal flips, AdamW with a cosine decay)
+    """Fit :class:`BoxRefinerNet` (smooth L1 on the box fractions, horizontal flips, AdamW with a cosine decay)
     and save ``{"config", "state_dict"}`` (fp16) to ``out_path``."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+
 import numpy as np
 import pytest
 import torch
@@ -63,8 +64,8 @@ def test_iou_aware_objectness_scores_a_cell_on_the_iou_of_its_box():
     raw = torch.zeros(1, 7, 4, 4)
     raw[0, 3] = math.log(2.0)  # width 16 px everywhere
     target = torch.tensor([[0, 4.0, 8.0, 20.0, 16.0]])  # 16 x 8 centred (12, 12): cell (1, 1) plus neighbours
-    loss_1, parts_1 = detection_loss(raw, [target], 8, obj_iou=1.0)
-    loss_0, parts_0 = detection_loss(raw, [target], 8, obj_iou=0.0)
+    _, parts_1 = detection_loss(raw, [target], 8, obj_iou=1.0)
+    _, parts_0 = detection_loss(raw, [target], 8, obj_iou=0.0)
     bce = lambda y: -(y * math.log(0.5) + (1 - y) * math.log(0.5))  # noqa: E731 (p = 0.5)
     neg = 0.75 * 0.25 * bce(0.0) * (16 - 3)  # 13 unassigned cells, target 0
     # Cell (1, 1) predicts 16 x 8 at the target's centre: IoU 1. Its neighbours (2, 1) and (1, 2)
