@@ -1,7 +1,7 @@
 """What every flight behaviour shares: the vehicle link, the clock, the vehicle-state port, hover on exit.
 
 Behaviours are py_trees leaves with typed ports (``py_trees.ports``). The runner hands them the
-:class:`~chaser_bt.vehicle.VehicleLink` and the mission :class:`~chaser_bt.mission.clock.Clock`
+:class:`~chaser_bt.vehicle.VehicleLink` and the mission :class:`~chaser_bt.clock.Clock`
 through ``setup(link=..., clock=...)`` and writes the vehicle state to ``/vehicle/state`` before
 every tick; the ``state`` port reads it from there unless a tree wires it elsewhere.
 
@@ -17,7 +17,7 @@ from typing import Any
 import py_trees
 from pymavlink import mavutil
 
-from chaser_bt.mission.clock import Clock
+from chaser_bt.clock import Clock
 from chaser_bt.tree import input_port
 from chaser_bt.vehicle import VehicleLink, VehicleState
 

@@ -2,11 +2,11 @@
 
 Prints one JSON line: {"name": "chase", "seeds": n, "success_frac", "t_airborne_s_median",
 "t_acquire_s_median", "target_in_fov_frac_median", "detection_frac_median", "radar_assoc_frac_median",
-"sar_found_frac", "campaign_runs_per_min", ...} from a campaign (:mod:`sitl.campaign`) of
+"sar_found_frac", "campaign_runs_per_min", ...} from a campaign (:mod:`sitl.bench.campaign`) of
 trees/chase.yaml on sitl/scenarios/chase.yaml, and one of trees/sar.yaml on sitl/scenarios/sar.yaml
 for ``sar_found_frac`` (null with ``sar_reason`` when either file is missing or ``--no-sar``).
 
-Success is :class:`sitl.campaign.SuccessRule`: the run ends well (landed, following or completed),
+Success is :class:`sitl.bench.campaign.SuccessRule`: the run ends well (landed, following or completed),
 vision acquired the intruder and kept it in the camera's FOV for at least 20 s after acquisition.
 ``campaign_runs_per_min``: runs flown per wall-clock minute by the chase campaign with ``--workers``
 processes (a fresh output folder, so every run is flown).
@@ -35,7 +35,7 @@ KEYS = ("t_airborne_s", "t_acquire_s", "target_in_fov_frac", "detection_frac", "
 
 
 def _campaign(tree: Path, scenario: Path, seeds: list[int], out: Path, args):
-    from sitl.campaign import CampaignConfig, run_campaign
+    from sitl.bench.campaign import CampaignConfig, run_campaign
 
     config = CampaignConfig(tree=tree, scenarios=[scenario], seeds=seeds, out_dir=out, workers=args.workers,
                             camera=not args.no_camera, quick=args.quick)
@@ -56,7 +56,7 @@ def main() -> None:
     args = parser.parse_args()
     os.environ.setdefault("MAVLINK20", "1")
     logging.basicConfig(level=logging.WARNING)
-    from sitl.campaign import parse_seeds
+    from sitl.bench.campaign import parse_seeds
 
     seeds = parse_seeds(args.seeds or ("1-4" if args.quick else "1-50"))
     with tempfile.TemporaryDirectory(prefix="bench_chase_") as tmp:

@@ -28,8 +28,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from chaser_bt.vision.camera import CameraModel  # noqa: E402
 from chaser_bt.vision.detector.inference import Detector  # noqa: E402
 from chaser_bt.vision.focus import FocusWindow  # noqa: E402
-from sitl.camera.renderer import Lighting, Renderer, TargetPose, attitude_from_velocity  # noqa: E402
-from sitl.camera.scene import make_ground  # noqa: E402
+from sitl.world.camera.renderer import Lighting, Renderer, TargetPose, attitude_from_velocity  # noqa: E402
+from sitl.world.camera.scene import make_ground  # noqa: E402
 
 ZOOMS = (0.0, 2.0, 3.0)  # 0: the whole frame
 

@@ -3,7 +3,7 @@
 Every seed flies one trajectory kind (rectangle with pauses, circle, figure eight, random waypoints,
 evasive Phantom 4), cycling through the kinds, against the built-in simulator: take off, then
 ``FollowGlobal`` on the intruder's own MAVLink position (telemetry range, as the paper's flight
-took range from GPS). Scored from truth by :mod:`sitl.follow_eval` over 150 s of target motion.
+took range from GPS). Scored from truth by :mod:`sitl.bench.follow_eval` over 150 s of target motion.
 Configurations: ``paper`` (the three loops of table 1), ``roll``, ``feed_forward``, ``roll_ff``;
 the headline figures are ``roll_ff``'s (the paper's loops are reported beside them).
 
@@ -33,7 +33,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from sitl.follow_eval import VISION_FOLLOW_PORTS, TRAJECTORY_PARAMS, fly_follow, intruder_scenario  # noqa: E402
+from sitl.bench.follow_eval import VISION_FOLLOW_PORTS, TRAJECTORY_PARAMS, fly_follow, intruder_scenario  # noqa: E402
 
 HEADLINE = "roll_ff"  # the controller as we recommend flying it; "paper" is table 1's three loops
 CONFIGS = {"paper": "", "roll": "use_roll: true", "feed_forward": "feed_forward: true",

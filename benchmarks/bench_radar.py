@@ -22,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from chaser_bt.radar.correlator import make_correlator  # noqa: E402
 from chaser_bt.radar.recording import calibrate_recording  # noqa: E402
-from sitl.radar.flights import (calibration_test_flight, correlation_test_flight, handheld_guess,  # noqa: E402
+from sitl.bench.radar_trials import (calibration_test_flight, correlation_test_flight, handheld_guess,  # noqa: E402
                                 score_correlator, to_recording)
 
 

@@ -5,7 +5,7 @@ Prints one JSON line: {"name": "search", "grid": [41, 41, 11], "plan_ms": {"1": 
 (median over planning states taken from kinematic searches), "plan_ms_p95": {...}, "plan_ms_max":
 {...}, "plan_cpu_ms" / "plan_cpu_ms_max" (process CPU time: the cost on an unshared machine),
 the same with "_sitl" over beliefs and poses of the search-only scenario flown in the full
-simulator (sitl/search_trial.py), "belief_update_ms": ...,
+simulator (sitl/bench/search_trial.py), "belief_update_ms": ...,
 "seeds": n, "t_acquire_s_rhc_median": ..., "t_acquire_s_maxbelief_median": ...}. Times are
 single-process wall and CPU time on this machine; the planner's compiled kernels are warmed up first.
 Run: .venv/bin/python benchmarks/bench_search.py [--quick]
@@ -59,7 +59,7 @@ def planning_states(n_runs: int):
 def sitl_states(seeds: int, search_s: float):
     """(sensor, belief, position, yaw) every 6 s of max-belief searches flown in the full simulator
     (the paper's grid around the radar's surveyed position, so one grid per seed)."""
-    from sitl.search_trial import SearchConfig, run_trial
+    from sitl.bench.search_trial import SearchConfig, run_trial
 
     states = []
     for seed in range(seeds):

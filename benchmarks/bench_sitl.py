@@ -20,7 +20,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3, help="report the best of N runs (the machine is shared)")
     args = parser.parse_args()
     os.environ.setdefault("MAVLINK20", "1")
-    from sitl.rehearsal import rehearse
+    from sitl.bench.rehearsal import rehearse
 
     runs = [
         rehearse(ROOT / "trees/patrol.yaml", ROOT / "sitl/scenarios/patrol.yaml", args.seed)

@@ -1,7 +1,7 @@
 """Vision benchmark (issue 6): detector quality and speed on a held-out rendered set, pipeline rate,
 bearing error and range error in a follow sequence, renderer speed. Prints one JSON line.
 
-Held-out: ``sitl.camera.dataset`` split "heldout" (other ground seeds, wider lighting), seed 777;
+Held-out: ``sitl.bench.camera_dataset`` split "heldout" (other ground seeds, wider lighting), seed 777;
 the person detector (search and rescue) on a held-out person set, seed 778. Pipeline quality: the
 share of labelled frames whose reported box is right (IoU >= 0.5), the bearing error p95 at the box
 centre on those frames (the acceptance's wording) and on every frame with an estimate.
@@ -29,10 +29,10 @@ from chaser_bt.vision.frame_source import Frame
 from chaser_bt.vision.pipeline import OwnshipPose, PipelineConfig, VisionPipeline
 from chaser_bt.vision.projection import Projector
 from chaser_bt.vision.range import TARGET_SPAN_M, range_from_box
-from sitl.camera.dataset import PERSON_CLASSES, DatasetRenderer, frame_boxes
-from sitl.camera.renderer import Lighting, Renderer, TargetPose, attitude_from_velocity
-from sitl.camera.scene import make_ground
-from sitl.camera.sequences import follow_sequence
+from sitl.bench.camera_dataset import PERSON_CLASSES, DatasetRenderer, frame_boxes
+from sitl.world.camera.renderer import Lighting, Renderer, TargetPose, attitude_from_velocity
+from sitl.world.camera.scene import make_ground
+from sitl.bench.camera_sequences import follow_sequence
 
 
 def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:

@@ -1,6 +1,6 @@
 """Belief gain over time in the full simulator (the paper's search-only SITL test, section 4.4):
 RHC for h = 1..5 and gamma 0.5 / 0.9 against max-belief, each flown by the real mission tree
-(sitl/search_trial.py: MAVLink simulator, MissionRunner, radar silenced within 200 m, camera
+(sitl/bench/search_trial.py: MAVLink simulator, MissionRunner, radar silenced within 200 m, camera
 detection off).
 
 Prints one JSON line {"name": "search_sitl_belief_gain", "seeds": n, "search_s": s, "configs": {label:
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sitl.search_trial import SearchConfig, SearchTrial, run_trial
+from sitl.bench.search_trial import SearchConfig, SearchTrial, run_trial
 
 ROOT = Path(__file__).resolve().parent.parent
 BIN_S = 1.0

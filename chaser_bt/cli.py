@@ -33,8 +33,8 @@ _COMMAND_MODULES = (
 # Commands that run the simulator live in sitl/ and are imported only when named (DESIGN §2: chaser_bt
 # reaches the simulator through lazily imported entry points); the others are listed but not loaded.
 _SIM_COMMANDS = {
-    "campaign": ("sitl.campaign", "rehearse a tree over many seeds and scenarios in parallel; report and plots"),
-    "search-trial": ("sitl.search_trial", "fly the search-only trial (radar cut at 200 m, camera blind) and log belief gain"),
+    "campaign": ("sitl.bench.campaign", "rehearse a tree over many seeds and scenarios in parallel; report and plots"),
+    "search-trial": ("sitl.bench.search_trial", "fly the search-only trial (radar cut at 200 m, camera blind) and log belief gain"),
 }
 
 log = logging.getLogger("chaser_bt.cli")
@@ -199,7 +199,7 @@ def _nodes(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from chaser_bt.mission.clock import FunctionClock, WallClock
+    from chaser_bt.clock import FunctionClock, WallClock
     from chaser_bt.mission.flight_sensors import FlightSensorError
     from chaser_bt.mission.runner import MissionRunner, RunStatus
     from chaser_bt.vehicle import LinkConfig, VehicleError, VehicleLink
@@ -241,9 +241,8 @@ def _run(args: argparse.Namespace) -> int:
 def _rehearse(args: argparse.Namespace) -> int:
     tree = _load_tree(args.tree)
     scenario = _load_scenario(args.scenario)
-    from sitl.rehearsal import rehearse
-
-    from sitl.sensors import SensorOptions
+    from sitl.bench.rehearsal import rehearse
+    from sitl.bench.sensors import SensorOptions
 
     on_tick = _tick_printer(tree, sys.stderr if args.json else sys.stdout) if args.show_ticks else None
     sensors = SensorOptions(radar=not args.no_radar, radar_pose=args.radar_pose, camera=not args.no_camera,
@@ -258,7 +257,7 @@ def _rehearse(args: argparse.Namespace) -> int:
     if args.trace is not None:
         report.trace.save(args.trace)
     if args.report is not None:
-        from sitl.report import write_rehearsal_report
+        from sitl.bench.report import write_rehearsal_report
 
         written = write_rehearsal_report(report, args.report)
         print(f"report written to {written['markdown']}", file=sys.stderr)
@@ -273,7 +272,10 @@ def _flight_sensors(args: argparse.Namespace, link, clock) -> dict:
     """The resources ``run`` hands the tree: radar, camera and target telemetry as the operator named them."""
     import time
 
-    from chaser_bt.mission.flight_sensors import FlightSensorOptions, build_flight_sensors
+    from chaser_bt.mission.flight_sensors import (
+        FlightSensorOptions,
+        build_flight_sensors,
+    )
     from chaser_bt.vehicle import VehicleError
 
     options = FlightSensorOptions(radar_listen=args.radar, radar_pose_file=args.radar_pose,
@@ -329,7 +331,7 @@ def _print_report(report: dict) -> None:
 
 
 def _load_scenario(path: Path):
-    from sitl.scenario import ScenarioError, load_scenario
+    from sitl.world.scenario import ScenarioError, load_scenario
 
     try:
         return load_scenario(path)

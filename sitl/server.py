@@ -10,7 +10,7 @@ re-anchors (logged once) instead of trying to catch up in a burst.
 
 With a signing key (``chaser-bt sitl --signing-key FILE``) the vehicle signs its MAVLink and obeys
 only correctly signed messages, as an ArduCopter with a stored key does
-(:meth:`sitl.mavlink_endpoint.MavlinkEndpoint.enable_signing`).
+(:meth:`sitl.vehicle.mavlink_endpoint.MavlinkEndpoint.enable_signing`).
 """
 
 from __future__ import annotations
@@ -23,10 +23,9 @@ import time
 from typing import Callable
 
 from chaser_bt.vehicle.signing import SigningConfig
-
-from sitl.scenario import Scenario
 from sitl.simulator import Simulator
 from sitl.transports import LOOPBACK, TcpClientPort, TcpServer, UdpPort
+from sitl.world.scenario import Scenario
 
 __all__ = ["serve"]
 

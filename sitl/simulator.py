@@ -1,4 +1,4 @@
-"""The simulator: one :class:`~sitl.autopilot.Autopilot` behind one ArduCopter MAVLink endpoint, on ports.
+"""The simulator: one :class:`~sitl.vehicle.autopilot.Autopilot` behind one ArduCopter MAVLink endpoint, on ports.
 
 A step is what one tick of a real flight controller's loop does: read everything that arrived on
 every port, advance the vehicle by one physics step, send whatever telemetry is due to every port.
@@ -7,13 +7,13 @@ bytes on the wire, at any speed and in any process (a rehearsal runs it lock-ste
 real-time server paces it against the wall clock from outside).
 
 When the scenario has a ``radar:`` section the simulator also runs the ground radar
-(:mod:`sitl.radar`): at each radar scan it shows the radar the vehicle (while airborne, as
+(:mod:`sitl.world.radar`): at each radar scan it shows the radar the vehicle (while airborne, as
 ``ownship``) and the scenario's scripted ``targets`` (not people: ``RADAR_BLIND_KINDS``), encodes the
 scan as one JSON datagram and sends it over UDP (``radar.udp_port``) and to every in-process consumer
 (:meth:`Simulator.add_radar_consumer`). The radar has its own random stream, so adding one does
 not change the vehicle's noise.
 
-The scenario's ``intruders`` (:mod:`sitl.intruders`: Phantom-like drones) fly here too, one step
+The scenario's ``intruders`` (:mod:`sitl.world.intruders`: Phantom-like drones) fly here too, one step
 with the vehicle; each sends its own MAVLink (its system id, HEARTBEAT and GLOBAL_POSITION_INT) to
 every port after the vehicle's bytes of that step, on its own radio: the vehicle's ``link_loss``
 faults do not silence it. The radar sees intruders like scripted targets. Each intruder's pilot
@@ -32,14 +32,13 @@ import numpy as np
 
 from chaser_bt.geo import LocalFrame
 from chaser_bt.radar.report import encode_scan
-
-from sitl.autopilot import Autopilot
-from sitl.intruders import Intruder
-from sitl.mavlink_endpoint import Channel, MavlinkEndpoint
-from sitl.physics import PHYSICS_DT
-from sitl.radar.model import GroundRadar, ScanTruth
-from sitl.radar.udp import RadarUdpSender
-from sitl.scenario import Scenario
+from sitl.vehicle.autopilot import Autopilot
+from sitl.vehicle.mavlink_endpoint import Channel, MavlinkEndpoint
+from sitl.vehicle.physics import PHYSICS_DT
+from sitl.world.intruders import Intruder
+from sitl.world.radar.model import GroundRadar, ScanTruth
+from sitl.world.radar.udp import RadarUdpSender
+from sitl.world.scenario import Scenario
 
 __all__ = ["Port", "Simulator"]
 
@@ -60,7 +59,7 @@ class Simulator:
     Args:
         scenario: the field, weather, airframe, parameters, boot times and faults.
         seed: seeds the autopilot's random generator (sensor noise, gusts): same seed, same run.
-        physics_hz: physics rate; default ``1 / sitl.physics.PHYSICS_DT`` (50 Hz).
+        physics_hz: physics rate; default ``1 / sitl.vehicle.physics.PHYSICS_DT`` (50 Hz).
     """
 
     def __init__(self, scenario: Scenario, seed: int, *, physics_hz: float | None = None) -> None:

@@ -30,10 +30,10 @@ from mcap.records import Channel, Header, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from scipy.spatial.transform import Rotation
 
+from chaser_bt.clock import FunctionClock
 from chaser_bt.geo import GeoPoint
 from chaser_bt.log import schemas as S
 from chaser_bt.log.trace import BeliefSnapshot, FlightTrace, TraceEvent
-from chaser_bt.mission.clock import FunctionClock
 from chaser_bt.mission.runner import MissionRunner, StatusChange
 from chaser_bt.tree import MissionTree, reset_blackboard
 from chaser_bt.vehicle import LinkConfig, VehicleError, VehicleLink
@@ -257,7 +257,10 @@ def _link_config(meta: dict[str, str]) -> LinkConfig:
 
 
 def _radar_feed(meta: dict[str, str], correlator: str | None):
-    from chaser_bt.radar.feed import RadarFeed, RadarNoise  # only replays with radar need it
+    from chaser_bt.radar.feed import (  # only replays with radar need it
+        RadarFeed,
+        RadarNoise,
+    )
     from chaser_bt.radar.geometry import RadarPose
     from chaser_bt.radar.stream import QueueDatagramSource
 
@@ -273,7 +276,9 @@ def recorded_camera_factory(log: FlightLog) -> Callable[[Any], Any] | None:
     shipped detector), or None when the log has no camera."""
     if "camera" not in log.meta:
         return None
-    from chaser_bt.vision.camera import CameraModel  # vision (and torch) only for logs with a camera
+    from chaser_bt.vision.camera import (
+        CameraModel,  # vision (and torch) only for logs with a camera
+    )
     from chaser_bt.vision.detector.inference import Detector
     from chaser_bt.vision.pipeline import CameraSensor, PipelineConfig, VisionPipeline
 

@@ -23,7 +23,7 @@ from typing import Any, Callable, Mapping
 
 import py_trees
 
-from chaser_bt.mission.clock import Clock
+from chaser_bt.clock import Clock
 from chaser_bt.tree import MissionTree
 from chaser_bt.vehicle import VehicleError, VehicleLink
 

@@ -15,7 +15,7 @@ from typing import Any, ClassVar
 import py_trees
 from py_trees.common import Status
 
-from chaser_bt.mission.clock import Clock
+from chaser_bt.clock import Clock
 from chaser_bt.tree.composites import (
     Fallback,
     IfThenElse,

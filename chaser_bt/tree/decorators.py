@@ -16,8 +16,16 @@ from typing import Any, ClassVar
 import py_trees
 from py_trees.common import Status
 
-from chaser_bt.mission.clock import Clock
-from chaser_bt.tree.node_base import ControlPorts, PortCheck, SKIPPED, Steps, check_count, now, require_clock
+from chaser_bt.clock import Clock
+from chaser_bt.tree.node_base import (
+    SKIPPED,
+    ControlPorts,
+    PortCheck,
+    Steps,
+    check_count,
+    now,
+    require_clock,
+)
 from chaser_bt.tree.ports import Port, input_port
 
 __all__ = [

@@ -15,7 +15,7 @@ import py_trees
 from py_trees.common import Status
 from py_trees.ports import PortsMixin
 
-from chaser_bt.mission.clock import Clock
+from chaser_bt.clock import Clock
 from chaser_bt.tree.ports import Port
 
 #: What a control node's ``step()`` is: a generator that yields ticked nodes and returns a status.

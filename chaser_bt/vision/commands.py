@@ -1,7 +1,7 @@
 """``chaser-bt train-detector``, ``train-refiner`` and ``eval-detector`` (wired into chaser_bt/cli.py by add_command).
 
 Data folders are in YOLO layout (images/*.jpg, labels/*.txt, classes.txt); render them with
-``python -m sitl.camera.dataset OUT --split train|heldout``.
+``python -m sitl.bench.camera_dataset OUT --split train|heldout``.
 """
 
 from __future__ import annotations
@@ -20,7 +20,10 @@ __all__ = ["add_command", "evaluate_folder"]
 def evaluate_folder(data_dir: str | Path, weights: str | Path, image_size: int, threads: int = 1, limit: int = 0,
                     backend: str = "auto") -> dict:
     """Metrics (model card) and frames/s of the detector on a YOLO folder at ``image_size``."""
-    from chaser_bt.vision.detector.evaluate import evaluate_detections, frames_per_second
+    from chaser_bt.vision.detector.evaluate import (
+        evaluate_detections,
+        frames_per_second,
+    )
     from chaser_bt.vision.detector.inference import Detector
 
     root = Path(data_dir)
@@ -78,8 +81,12 @@ def _train(args: argparse.Namespace) -> int:
 def _train_refiner(args: argparse.Namespace) -> int:
     import torch
 
+    from chaser_bt.vision.detector.refine import (
+        RefinerConfig,
+        make_refiner_set,
+        train_refiner,
+    )
     from chaser_bt.vision.detector.train import load_yolo_folder
-    from chaser_bt.vision.refine import RefinerConfig, make_refiner_set, train_refiner
 
     torch.set_num_threads(args.threads)
     config = RefinerConfig()
@@ -120,7 +127,7 @@ def _eval(args: argparse.Namespace) -> int:
 def add_command(subparsers) -> None:
     """Add ``train-detector``, ``train-refiner`` and ``eval-detector`` to the CLI's subparsers."""
     t = subparsers.add_parser("train-detector", help="train the vision detector on a YOLO folder (seeded, resumable)")
-    t.add_argument("--data", required=True, help="YOLO folder (python -m sitl.camera.dataset writes one)")
+    t.add_argument("--data", required=True, help="YOLO folder (python -m sitl.bench.camera_dataset writes one)")
     t.add_argument("--out", default="detector.pt", help="weights file to write (a .ckpt beside it makes it resumable)")
     t.add_argument("--steps", type=int, default=1500)
     t.add_argument("--batch", type=int, default=24)
@@ -134,7 +141,7 @@ def add_command(subparsers) -> None:
     t.add_argument("--obj-iou", type=float, default=0.0, help="objectness target 1 - g + g * IoU of the predicted box (YOLOv5's gr)")
     t.set_defaults(handler=_train)
     r = subparsers.add_parser("train-refiner", help="train the box refiner (second stage) on YOLO folders of full-size frames")
-    r.add_argument("--data", required=True, nargs="+", help="YOLO folders (python -m sitl.camera.dataset writes them)")
+    r.add_argument("--data", required=True, nargs="+", help="YOLO folders (python -m sitl.bench.camera_dataset writes them)")
     r.add_argument("--out", required=True, help="weights file; ship it beside the detector as <detector>_refiner.pt")
     r.add_argument("--per-label", type=int, default=6, help="jittered crops per labelled target")
     r.add_argument("--steps", type=int, default=4000)

@@ -1,7 +1,7 @@
 """Where frames come from: the FrameSource protocol and its cv2.VideoCapture implementation.
 
 A mission asks a source for the frame at mission time ``t``; a live or recorded camera returns its
-next frame stamped with ``t``. The simulator's rendered camera (``sitl.camera.frame_source``)
+next frame stamped with ``t``. The simulator's rendered camera (``sitl.world.camera.frame_source``)
 implements the same protocol; a video file, a device index or any URL OpenCV opens (RTSP, HTTP,
 GStreamer pipeline) go through :class:`VideoCaptureSource`.
 """

@@ -75,7 +75,7 @@ class PipelineConfig:
             detection scoring less confirms a followed track without moving it
             (:class:`chaser_bt.vision.trackers.TrackerBank`); ignored for other detectors.
         refine_tracks: between detector frames, re-place the tracked boxes with the detector's box
-            refiner when it has one (:mod:`chaser_bt.vision.refine`): trackers keep the detection's
+            refiner when it has one (:mod:`chaser_bt.vision.detector.refine`): trackers keep the detection's
             size and drift by a pixel or two a frame.
     """
 

@@ -35,8 +35,8 @@ from typing import Callable, Sequence
 import cv2
 import numpy as np
 
-from chaser_bt.vision.detector.evaluate import iou_matrix
 from chaser_bt.vision.detection import Detection
+from chaser_bt.vision.detector.evaluate import iou_matrix
 
 __all__ = ["TRACKER_KINDS", "make_tracker", "Track", "TrackerBank"]
 
@@ -107,7 +107,7 @@ class TrackerBank:
             box or reseeding its trackers: a detector whose score is the predicted box's IoU (trained with
             ``obj_iou``) says by a low score that the box is badly placed (0: always reseed).
         refine: re-places boxes the trackers moved (frame, (N, 4) boxes) -> (N, 4) boxes, e.g. the
-            detector's :class:`chaser_bt.vision.refine.BoxRefiner`; trackers keep the detection's size
+            detector's :class:`chaser_bt.vision.detector.refine.BoxRefiner`; trackers keep the detection's size
             and drift by a pixel or two a frame. None: the trackers' boxes as they are.
     """
 

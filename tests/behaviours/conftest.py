@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from sitl.rehearsal import InProcessVehicle
-from sitl.scenario import load_scenario
+from sitl.bench.in_process import InProcessVehicle
+from sitl.world.scenario import load_scenario
 
 SCENARIO = Path(__file__).resolve().parents[2] / "sitl" / "scenarios" / "patrol.yaml"
 

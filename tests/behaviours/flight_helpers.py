@@ -6,7 +6,7 @@ import py_trees
 
 from chaser_bt.mission.runner import MissionRunner
 from chaser_bt.tree import load_tree_text
-from sitl.rehearsal import InProcessVehicle
+from sitl.bench.in_process import InProcessVehicle
 
 
 def runner_for(vehicle: InProcessVehicle, body: str) -> MissionRunner:

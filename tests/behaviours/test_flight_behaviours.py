@@ -5,12 +5,11 @@ from __future__ import annotations
 import numpy as np
 import py_trees
 import pytest
+from flight_helpers import fly, runner_for, take_off
 
 from chaser_bt.geo import GeoPoint
 from chaser_bt.vehicle import LinkConfig
-from sitl.rehearsal import InProcessVehicle
-
-from flight_helpers import fly, runner_for, take_off
+from sitl.bench.in_process import InProcessVehicle
 
 Status = py_trees.common.Status
 

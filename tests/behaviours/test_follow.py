@@ -1,4 +1,4 @@
-"""Follow behaviours flown against the simulator with a Phantom-like intruder (sitl/intruders.py)."""
+"""Follow behaviours flown against the simulator with a Phantom-like intruder (sitl/world/intruders.py)."""
 
 from __future__ import annotations
 
@@ -8,14 +8,13 @@ from pathlib import Path
 import numpy as np
 import py_trees
 import pytest
+from flight_helpers import runner_for, take_off
 
 from chaser_bt.cue import TargetCue, TargetEstimate
 from chaser_bt.vehicle import LinkConfig
-from sitl.follow_eval import fly_follow
-from sitl.rehearsal import InProcessVehicle
-from sitl.scenario import load_scenario
-
-from flight_helpers import runner_for, take_off
+from sitl.bench.follow_eval import fly_follow
+from sitl.bench.in_process import InProcessVehicle
+from sitl.world.scenario import load_scenario
 
 Status = py_trees.common.Status
 RECTANGLE = load_scenario(Path(__file__).resolve().parents[2] / "sitl" / "scenarios" / "follow_rectangle.yaml")

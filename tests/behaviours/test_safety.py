@@ -16,8 +16,8 @@ from hypothesis import strategies as st
 from matplotlib.path import Path as MplPath
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
+from chaser_bt.clock import ManualClock
 from chaser_bt.control.cue_approach import approach_point
-from chaser_bt.mission.clock import ManualClock
 from chaser_bt.mission.geofence import Geofence, point_in_polygon
 from chaser_bt.tree import load_tree_text
 from chaser_bt.vehicle import VehicleState

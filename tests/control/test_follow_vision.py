@@ -120,7 +120,11 @@ def test_cvfollow_declares_the_new_ports_with_backward_compatible_defaults():
 @pytest.mark.slow
 def test_vision_range_follow_keeps_the_rectangle_target_in_view():
     """No telemetry: rendered camera, shipped detector, CVFollow with the benchmark's vision ports."""
-    from sitl.follow_eval import VISION_FOLLOW_PORTS, fly_follow, intruder_scenario
+    from sitl.bench.follow_eval import (
+        VISION_FOLLOW_PORTS,
+        fly_follow,
+        intruder_scenario,
+    )
 
     score, _, runner = fly_follow(intruder_scenario("rectangle"), 0, range_source="vision", duration_s=30.0,
                                   follow_ports=VISION_FOLLOW_PORTS)

@@ -5,10 +5,11 @@ from __future__ import annotations
 import math
 
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 
 from chaser_bt.control.sticks import StickMap
-from sitl.modes import norm_input_dz, pilot_climb_rate
+from sitl.vehicle.modes import norm_input_dz, pilot_climb_rate
 
 SM = StickMap()
 

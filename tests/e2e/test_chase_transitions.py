@@ -30,17 +30,17 @@ import numpy as np
 import py_trees
 import pytest
 
-from chaser_bt.mission.clock import FunctionClock
-from chaser_bt.mission.runner import MissionRunner
+from chaser_bt.clock import FunctionClock
 from chaser_bt.geo import GeoPoint
+from chaser_bt.mission.runner import MissionRunner
 from chaser_bt.tree import load_tree, load_tree_text, reset_blackboard
 from chaser_bt.tree.display import render_tree
 from chaser_bt.vehicle import LinkConfig
 from chaser_bt.vision.camera import CameraModel
 from chaser_bt.vision.pipeline import CameraSensor, VisionPipeline
-from sitl.rehearsal import InProcessVehicle
-from sitl.scenario import Scenario
-from sitl.sensors import SensorOptions, build_sensors
+from sitl.bench.in_process import InProcessVehicle
+from sitl.bench.sensors import SensorOptions, build_sensors
+from sitl.world.scenario import Scenario
 
 pytestmark = pytest.mark.slow
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from sitl.rehearsal import rehearse
+from sitl.bench.rehearsal import rehearse
 
 ROOT = Path(__file__).resolve().parents[2]
 TREE = ROOT / "trees" / "patrol.yaml"

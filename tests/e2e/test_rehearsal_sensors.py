@@ -15,9 +15,16 @@ import yaml
 from chaser_bt.radar.feed import RadarFeed
 from chaser_bt.target_telemetry import TargetTelemetry
 from chaser_bt.vision.pipeline import CameraSensor
-from sitl.rehearsal import InProcessVehicle, rehearse
-from sitl.scenario import Scenario, load_scenario
-from sitl.sensors import SURVEY_SIGMA, SensorOptions, build_sensors, calibrated_radar_pose, surveyed_radar_pose
+from sitl.bench.in_process import InProcessVehicle
+from sitl.bench.rehearsal import rehearse
+from sitl.bench.sensors import (
+    SURVEY_SIGMA,
+    SensorOptions,
+    build_sensors,
+    calibrated_radar_pose,
+    surveyed_radar_pose,
+)
+from sitl.world.scenario import Scenario, load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 CHASE = ROOT / "sitl" / "scenarios" / "chase.yaml"

@@ -119,8 +119,8 @@ EXPECTED_PHASES = ["launch", "fly_to_cue", "search", "loiter", "return"]  # "wai
 def test_sar_rehearsal_finds_the_person_reports_and_lands():
     import torch
 
-    from sitl.rehearsal import rehearse
-    from sitl.sensors import SensorOptions
+    from sitl.bench.rehearsal import rehearse
+    from sitl.bench.sensors import SensorOptions
 
     torch.set_num_threads(1)
     phases: list[str] = []
@@ -135,7 +135,7 @@ def test_sar_rehearsal_finds_the_person_reports_and_lands():
 
     report = rehearse(TREES / "sar.yaml", ROOT / "sitl" / "scenarios" / "sar.yaml", SEED,
                       sensors=SensorOptions(camera_size=CAMERA_SIZE), on_start=on_start)
-    assert report.sar_found, (report.sar_find_error_m, report.message)  # scored by the rehearsal (sitl/sar_scoring.py)
+    assert report.sar_found, (report.sar_find_error_m, report.message)  # scored by the rehearsal (sitl/bench/sar_scoring.py)
     assert report.sar_find_error_m < 10.0 and report.sar_t_find_s > 0.0
     # Found, held over the find, came home and landed on its own, through the chase's states.
     assert report.outcome == "landed" and report.landed_dist_m < 3.0, report.message

@@ -8,8 +8,15 @@ import math
 
 import numpy as np
 
-from sitl.scenario import load_scenario
-from sitl.search_trial import SEARCH_ONLY, RadarGate, SearchConfig, run_trial, target_waypoints, trial_scenario
+from sitl.bench.search_trial import (
+    SEARCH_ONLY,
+    RadarGate,
+    SearchConfig,
+    run_trial,
+    target_waypoints,
+    trial_scenario,
+)
+from sitl.world.scenario import load_scenario
 
 
 def test_target_paths_are_seeded_and_stay_well_inside_the_search_grid():
@@ -66,7 +73,7 @@ def test_the_search_trial_command_prints_a_summary_and_refuses_bad_input(capsys)
     import argparse
     import json
 
-    from sitl.search_trial import add_command
+    from sitl.bench.search_trial import add_command
 
     parser = argparse.ArgumentParser()
     add_command(parser.add_subparsers())

@@ -22,7 +22,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from chaser_bt.cue import TargetCue, TargetEstimate
-from chaser_bt.ground import MAX_DATAGRAM, FrameAssembler, GroundSender, chunk_frame, parse_chunk, parse_datagram
+from chaser_bt.ground import (
+    MAX_DATAGRAM,
+    FrameAssembler,
+    GroundSender,
+    chunk_frame,
+    parse_chunk,
+    parse_datagram,
+)
 from chaser_bt.ground.protocol import (
     VIDEO_HEADER,
     Box,
@@ -217,9 +224,9 @@ def test_the_receiver_in_the_docs_reads_what_the_sender_sends(tmp_path):
 def scenario():
     """A quick-booting field; a radar 100 m south looking north; an intruder circling 150 m north."""
     from chaser_bt.geo import GeoPoint
-    from sitl.radar import RadarConfig
-    from sitl.scenario import BootParams, Scenario, ScriptedTarget
-    from sitl.targets import CirclePath
+    from sitl.world.radar import RadarConfig
+    from sitl.world.scenario import BootParams, Scenario, ScriptedTarget
+    from sitl.world.targets import CirclePath
 
     radar = RadarConfig(GeoPoint(42.5436, -71.6105, 81.0), pitch_rad=np.radians(10.0), pd=1.0)
     return Scenario("ground-stream", GeoPoint(42.5445, -71.6105, 80.0), boot=BootParams(1.0, 2.0, 3.0), radar=radar,
@@ -251,7 +258,7 @@ def test_stream_to_ground_sends_status_tracks_cue_estimate_and_boxed_video_and_k
     from chaser_bt.vision.camera import CameraModel
     from chaser_bt.vision.detection import Detection
     from chaser_bt.vision.pipeline import CameraSensor, PipelineConfig, VisionPipeline
-    from sitl.rehearsal import InProcessVehicle
+    from sitl.bench.in_process import InProcessVehicle
 
     ground = _listener()
     ground.setblocking(False)

@@ -20,10 +20,10 @@ from chaser_bt.radar.feed import RadarFeed, RadarNoise
 from chaser_bt.radar.geometry import RadarPose
 from chaser_bt.radar.stream import QueueDatagramSource
 from chaser_bt.tree import load_tree_text, reset_blackboard
-from sitl.radar import RadarConfig
-from sitl.rehearsal import InProcessVehicle
-from sitl.scenario import BootParams, Scenario, ScriptedTarget
-from sitl.targets import CirclePath
+from sitl.bench.in_process import InProcessVehicle
+from sitl.world.radar import RadarConfig
+from sitl.world.scenario import BootParams, Scenario, ScriptedTarget
+from sitl.world.targets import CirclePath
 
 HOME = GeoPoint(42.5445, -71.6105, 80.0)
 RADAR = RadarConfig(GeoPoint(42.5436, -71.6105, 81.0), pitch_rad=np.radians(10.0), pd=1.0)
@@ -93,7 +93,7 @@ def fly(path: Path | None, seed: int = 3, *, time_limit_s: float = 120.0, pace: 
     feed = RadarFeed(queue, pose, noise=RadarNoise(RADAR.sigma_range_m, RADAR.sigma_az_rad, RADAR.sigma_el_rad))
     resources = {"radar": feed}
     if vision:
-        from sitl.sensors import SensorOptions, build_sensors
+        from sitl.bench.sensors import SensorOptions, build_sensors
 
         resources = build_sensors(v, SensorOptions(radar=False, telemetry=False, camera_size=(320, 240)), seed).resources
     runner = MissionRunner(tree, v.link, v.clock, resources=resources)

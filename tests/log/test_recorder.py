@@ -15,12 +15,13 @@ import cv2
 import numpy as np
 import py_trees
 import pytest
+from log_flight import fly
 from mcap.reader import make_reader
 
+from chaser_bt.clock import ManualClock
 from chaser_bt.log import schemas as S
 from chaser_bt.log.recorder import attach_recorder
 from chaser_bt.log.replay import flight_trace, read_log
-from chaser_bt.mission.clock import ManualClock
 from chaser_bt.mission.runner import MissionRunner
 from chaser_bt.search.belief import BeliefGrid, GridSpec
 from chaser_bt.search.session import SearchSnapshot
@@ -28,7 +29,6 @@ from chaser_bt.tree import load_tree_text
 from chaser_bt.vehicle import VehicleLink
 from chaser_bt.vehicle.pipe import byte_pipe
 from chaser_bt.vision.frame_source import Frame
-from log_flight import fly
 
 HERE = Path(__file__).resolve().parent
 FLIGHT_TOPICS = {S.TOPIC_MAVLINK_READ, S.TOPIC_MAVLINK_IN, S.TOPIC_MAVLINK_OUT, S.TOPIC_TREE, S.TOPIC_BLACKBOARD,
@@ -169,7 +169,11 @@ def test_sigkill_mid_flight_loses_at_most_the_last_second(tmp_path):
 
 
 def test_record_and_live_flags_attach_a_recorder_through_the_hook(tmp_path):
-    from chaser_bt.log.commands import RecordingError, RecordingHook, add_recording_arguments
+    from chaser_bt.log.commands import (
+        RecordingError,
+        RecordingHook,
+        add_recording_arguments,
+    )
     from chaser_bt.log.live import DEFAULT_PORT
 
     parser = argparse.ArgumentParser()

@@ -12,9 +12,14 @@ import cv2
 import numpy as np
 import pytest
 
+from chaser_bt.clock import ManualClock
 from chaser_bt.geo import GeoPoint, LocalFrame
-from chaser_bt.mission.clock import ManualClock
-from chaser_bt.mission.flight_sensors import FlightSensorError, FlightSensorOptions, build_flight_sensors, load_radar_pose
+from chaser_bt.mission.flight_sensors import (
+    FlightSensorError,
+    FlightSensorOptions,
+    build_flight_sensors,
+    load_radar_pose,
+)
 
 HOME = GeoPoint(42.5445, -71.6105, 80.0)
 

@@ -11,8 +11,8 @@ import pytest
 from chaser_bt.mission.runner import VEHICLE_STATE_KEY, MissionRunner, RunStatus
 from chaser_bt.tree import Registry, default_registry, input_port, load_tree_text
 from chaser_bt.vehicle import VehicleState
-from sitl.rehearsal import InProcessVehicle
-from sitl.scenario import load_scenario
+from sitl.bench.in_process import InProcessVehicle
+from sitl.world.scenario import load_scenario
 
 Status = py_trees.common.Status
 SCENARIO = Path(__file__).resolve().parents[2] / "sitl" / "scenarios" / "patrol.yaml"

@@ -11,7 +11,11 @@ import pytest
 
 from chaser_bt.radar.commands import add_command
 from chaser_bt.radar.recording import write_recording
-from sitl.radar.flights import calibration_test_flight, handheld_guess, to_recording
+from sitl.bench.radar_trials import (
+    calibration_test_flight,
+    handheld_guess,
+    to_recording,
+)
 
 
 def cli(argv: list[str]) -> int:

@@ -3,7 +3,6 @@ beside a circling intruder; neither behaviour may ever validate or cue on our ow
 
 from __future__ import annotations
 
-
 import numpy as np
 import py_trees
 import pytest
@@ -13,10 +12,10 @@ from chaser_bt.radar.feed import RadarFeed, RadarNoise
 from chaser_bt.radar.geometry import RadarPose
 from chaser_bt.radar.stream import QueueDatagramSource
 from chaser_bt.tree import load_tree_text
-from sitl.radar import RadarConfig
-from sitl.rehearsal import InProcessVehicle
-from sitl.scenario import BootParams, Scenario, ScriptedTarget
-from sitl.targets import CirclePath
+from sitl.bench.in_process import InProcessVehicle
+from sitl.world.radar import RadarConfig
+from sitl.world.scenario import BootParams, Scenario, ScriptedTarget
+from sitl.world.targets import CirclePath
 
 Status = py_trees.common.Status
 HOME = GeoPoint(42.5445, -71.6105, 80.0)

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from chaser_bt.geo import GeoPoint
-from sitl.autopilot import Autopilot
-from sitl.physics import WindParams
-from sitl.scenario import BootParams, Fault, Scenario
+from sitl.vehicle.autopilot import Autopilot
+from sitl.vehicle.physics import WindParams
+from sitl.world.scenario import BootParams, Fault, Scenario
 
 FIELD = GeoPoint(42.5445, -71.6105, 80.0)
 FAST_BOOT = BootParams(gps_fix_s=1.0, ekf_ready_s=2.0, prearm_ok_s=3.0)

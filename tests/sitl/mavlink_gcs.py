@@ -94,7 +94,7 @@ FIELD = {"lat_deg": 42.5, "lon_deg": -71.6, "alt_m": 80.0}
 
 def quick_scenario(**overrides):
     """A calm field whose vehicle is ready to arm after 3 s (gps 1 s, EKF 2 s, pre-arm 3 s)."""
-    from sitl.scenario import Scenario
+    from sitl.world.scenario import Scenario
 
     doc = {
         "name": "test",

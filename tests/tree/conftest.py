@@ -12,8 +12,15 @@ import py_trees
 import pytest
 from py_trees.common import Status
 
-from chaser_bt.mission.clock import ManualClock
-from chaser_bt.tree import MissionTree, Registry, input_port, load_tree_text, output_port, reset_blackboard
+from chaser_bt.clock import ManualClock
+from chaser_bt.tree import (
+    MissionTree,
+    Registry,
+    input_port,
+    load_tree_text,
+    output_port,
+    reset_blackboard,
+)
 
 
 @dataclass

@@ -8,7 +8,7 @@ import py_trees
 import pytest
 from py_trees.common import Status
 
-from chaser_bt.mission.clock import ManualClock
+from chaser_bt.clock import ManualClock
 from chaser_bt.tree import (
     Registry,
     TreeError,

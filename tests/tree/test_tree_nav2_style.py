@@ -13,8 +13,13 @@ import py_trees
 import pytest
 from py_trees.common import Status
 
-from chaser_bt.mission.clock import ManualClock
-from chaser_bt.tree import Registry, default_registry, load_tree_text, validate_tree_text
+from chaser_bt.clock import ManualClock
+from chaser_bt.tree import (
+    Registry,
+    default_registry,
+    load_tree_text,
+    validate_tree_text,
+)
 
 S, F, R = Status.SUCCESS, Status.FAILURE, Status.RUNNING
 Blackboard = py_trees.blackboard.Blackboard

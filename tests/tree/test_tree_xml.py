@@ -227,7 +227,7 @@ def test_patrol_xml_rehearses_exactly_like_patrol_yaml(seed):
     os.environ.setdefault("MAVLINK20", "1")
     from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-    from sitl.rehearsal import rehearse
+    from sitl.bench.rehearsal import rehearse
 
     def fly(tree: str) -> tuple[bytes, object]:
         chunks: list[bytes] = []

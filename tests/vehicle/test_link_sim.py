@@ -8,9 +8,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from chaser_bt.vehicle import CommandStatus, LandedState, VehicleLink, VehicleQuiet, byte_pipe
+from chaser_bt.vehicle import (
+    CommandStatus,
+    LandedState,
+    VehicleLink,
+    VehicleQuiet,
+    byte_pipe,
+)
 
-sitl_scenario = pytest.importorskip("sitl.scenario")
+sitl_scenario = pytest.importorskip("sitl.world.scenario")
 sitl_simulator = pytest.importorskip("sitl.simulator")
 
 PATROL = Path(__file__).resolve().parents[2] / "sitl" / "scenarios" / "patrol.yaml"

@@ -144,7 +144,7 @@ def test_gate_signs_outgoing_with_growing_timestamps_a_stock_parser_verifies():
 
 # --------------------------------------------------------------------------- the link with a key
 sitl_simulator = pytest.importorskip("sitl.simulator")
-sitl_scenario = pytest.importorskip("sitl.scenario")
+sitl_scenario = pytest.importorskip("sitl.world.scenario")
 
 
 def _scenario():

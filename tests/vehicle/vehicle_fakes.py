@@ -16,8 +16,8 @@ from typing import Callable  # noqa: E402
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2  # noqa: E402
 
+from chaser_bt.clock import ManualClock  # noqa: E402
 from chaser_bt.geo import GeoPoint  # noqa: E402
-from chaser_bt.mission.clock import ManualClock  # noqa: E402
 from chaser_bt.vehicle import LinkConfig, VehicleLink, byte_pipe  # noqa: E402
 from chaser_bt.vehicle.pipe import PipeEnd  # noqa: E402
 

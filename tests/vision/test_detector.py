@@ -77,7 +77,7 @@ def test_iou_aware_objectness_scores_a_cell_on_the_iou_of_its_box():
 
 
 def test_shipped_weights_load_by_default_and_detect_targets_on_a_fresh_heldout_set():
-    from sitl.camera.dataset import DatasetRenderer, frame_boxes
+    from sitl.bench.camera_dataset import DatasetRenderer, frame_boxes
 
     assert DEFAULT_WEIGHTS.exists() and DEFAULT_WEIGHTS.stat().st_size < 4_000_000
     det = Detector(conf_threshold=0.005)
@@ -105,7 +105,7 @@ def test_onnx_backend_gives_the_torch_detections():
 
 def test_shipped_person_detector_finds_people_on_a_fresh_heldout_set():
     from chaser_bt.vision.detector.inference import SHIPPED_WEIGHTS, shipped_detector
-    from sitl.camera.dataset import PERSON_CLASSES, DatasetRenderer, frame_boxes
+    from sitl.bench.camera_dataset import PERSON_CLASSES, DatasetRenderer, frame_boxes
 
     path = SHIPPED_WEIGHTS["person_yolo"]
     assert path.exists() and path.stat().st_size < 4_000_000

@@ -10,9 +10,14 @@ import pytest
 from chaser_bt.vision.camera import CameraModel
 from chaser_bt.vision.detector.inference import Detection, Detector
 from chaser_bt.vision.frame_source import Frame, VideoCaptureSource
-from chaser_bt.vision.pipeline import CameraSensor, OwnshipPose, PipelineConfig, VisionPipeline
+from chaser_bt.vision.pipeline import (
+    CameraSensor,
+    OwnshipPose,
+    PipelineConfig,
+    VisionPipeline,
+)
 from chaser_bt.vision.projection import Projector
-from sitl.camera.sequences import follow_sequence
+from sitl.bench.camera_sequences import follow_sequence
 
 CAM = CameraModel(width_px=640, height_px=480)
 

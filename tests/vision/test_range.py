@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from chaser_bt.vision.range import TARGET_SPAN_M, RangeFilter, range_from_box
-from sitl.camera.models import TARGET_MODELS
+from sitl.world.camera.models import TARGET_MODELS
 
 
 def test_range_from_a_centred_box_is_span_over_twice_the_half_angle_tangent():

@@ -7,8 +7,17 @@ import pytest
 import torch
 
 from chaser_bt.vision.detection import Detection
-from chaser_bt.vision.refine import (BoxRefiner, BoxRefinerNet, RefinerConfig, _crops, crop_window, jitter_boxes, make_refiner_set,
-                                     refiner_path, train_refiner)
+from chaser_bt.vision.detector.refine import (
+    BoxRefiner,
+    BoxRefinerNet,
+    RefinerConfig,
+    _crops,
+    crop_window,
+    jitter_boxes,
+    make_refiner_set,
+    refiner_path,
+    train_refiner,
+)
 
 
 def test_crop_window_is_context_times_the_larger_side_around_the_centre_and_never_under_the_minimum():
@@ -90,7 +99,7 @@ def test_a_refiner_trained_on_squares_places_jittered_boxes_better_than_it_got_t
 def test_the_shipped_refiner_improves_the_shipped_detectors_boxes_on_a_fresh_heldout_set():
     from chaser_bt.vision.detector.evaluate import iou_matrix
     from chaser_bt.vision.detector.inference import DEFAULT_WEIGHTS, Detector
-    from sitl.camera.dataset import DatasetRenderer, frame_boxes
+    from sitl.bench.camera_dataset import DatasetRenderer, frame_boxes
 
     assert refiner_path(DEFAULT_WEIGHTS).exists()
     plain = Detector(conf_threshold=0.25, refiner=None)

@@ -10,8 +10,8 @@ import py_trees
 import pytest
 from scipy.spatial.transform import Rotation
 
+from chaser_bt.clock import ManualClock
 from chaser_bt.cue import TargetCue
-from chaser_bt.mission.clock import ManualClock
 from chaser_bt.tree import load_tree_text
 from chaser_bt.vehicle.state import VehicleState
 from chaser_bt.vision.camera import CameraModel
@@ -109,7 +109,7 @@ def test_cli_commands_parse_and_refuse_a_missing_folder(tmp_path, capsys):
 def test_train_refiner_writes_a_refiner_the_detector_can_load(tmp_path, capsys):
     from chaser_bt.vision.commands import add_command
     from chaser_bt.vision.detector.inference import Detector
-    from sitl.camera.dataset import write_dataset
+    from sitl.bench.camera_dataset import write_dataset
 
     write_dataset(tmp_path / "d", 4, seed=4, split="train", ground_size_px=256)
     parser = argparse.ArgumentParser()
@@ -124,7 +124,7 @@ def test_train_refiner_writes_a_refiner_the_detector_can_load(tmp_path, capsys):
 
 def test_eval_detector_prints_model_card_metrics_on_a_rendered_folder(tmp_path, capsys):
     from chaser_bt.vision.commands import add_command
-    from sitl.camera.dataset import write_dataset
+    from sitl.bench.camera_dataset import write_dataset
 
     write_dataset(tmp_path / "d", 5, seed=4, split="heldout")
     parser = argparse.ArgumentParser()

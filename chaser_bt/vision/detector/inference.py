@@ -1,5 +1,5 @@
 """Run the trained detector on BGR frames: letterbox, forward, decode, confidence filter, NMS, and
-the box refiner shipped beside the weights when there is one (:mod:`chaser_bt.vision.refine`).
+the box refiner shipped beside the weights when there is one (:mod:`chaser_bt.vision.detector.refine`).
 
 The default weights ship in ``chaser_bt/vision/weights/tiny_yolo.pt`` and load without any
 download; :data:`SHIPPED_WEIGHTS` names every shipped model (``tiny_yolo``: s1000 and phantom;
@@ -18,7 +18,7 @@ import torch
 from chaser_bt.vision.detection import Detection
 from chaser_bt.vision.detector.augment import letterbox
 from chaser_bt.vision.detector.model import DetectorConfig, TinyYolo, decode
-from chaser_bt.vision.refine import BoxRefiner, refiner_path
+from chaser_bt.vision.detector.refine import BoxRefiner, refiner_path
 
 __all__ = ["Detection", "Detector", "DEFAULT_WEIGHTS", "DEFAULT_ONNX", "SHIPPED_WEIGHTS", "shipped_detector", "load_model", "nms", "export_onnx"]
 
@@ -75,7 +75,7 @@ class Detector:
         threads: torch (process-wide) or onnxruntime intra-op threads.
         multi_label: report every class above the threshold for a box, not just the best (for AP).
         refiner: the second stage re-placing each box from a full-resolution crop
-            (:class:`chaser_bt.vision.refine.BoxRefiner`): "auto" = the one shipped beside ``weights``
+            (:class:`chaser_bt.vision.detector.refine.BoxRefiner`): "auto" = the one shipped beside ``weights``
             when there is one, a path, or None for none.
         backend: "torch"; "onnx" to run ``onnx_path`` with onnxruntime (optional dependency, measured
             faster on this CPU); "auto" = onnx when onnxruntime is installed and ``onnx_path`` exists

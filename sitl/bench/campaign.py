@@ -1,0 +1,735 @@
+"""Campaigns: one mission tree rehearsed over many scenarios and seeds, in parallel, resumable, with a report.
+
+``chaser-bt campaign TREE --scenarios DIR_OR_FILE --seeds 1-50 --workers N --out DIR`` runs one
+:func:`sitl.bench.rehearsal.rehearse` per (scenario, seed) in worker processes (``spawn``; each worker
+pins torch and the BLAS libraries to one thread, since runs are already parallel), or on a Ray
+cluster with ``--ray ADDRESS``. Every finished run is written at once as
+``DIR/runs/<scenario>/seed_<n>.json`` (and its trace as ``.npz``) by an atomic rename, so a campaign
+killed midway resumes where it stopped: a run whose JSON exists for the same tree and scenario
+contents is not flown again (unless it ended in ``error``: those are retried). At the end the runs are aggregated (success rate; median, IQR and
+p10-p90 of every DESIGN §7 key beside the paper's values) into ``campaign.json``, ``campaign.md``
+and the paper's figures (overhead tracks, relative geometry, belief maps, CDFs).
+
+A run **succeeds** (:class:`SuccessRule`) when it ends well (``landed``, ``following`` or
+``completed``: not crashed, failsafe, timed out or in error) and, where the mission had a target
+(its trace saw one, or a FOV share was scored), vision acquired it and kept it in the camera's FOV for at
+least ``min_followed_s`` seconds after acquisition; where a run reports ``sar_found`` (not None), it
+must be true.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import hashlib
+import inspect
+import json
+import logging
+import math
+import multiprocessing
+import os
+import sys
+import time
+from collections import Counter
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
+
+import numpy as np
+
+from chaser_bt.log.trace import FlightTrace
+
+__all__ = [
+    "CampaignConfig",
+    "CampaignError",
+    "CampaignResult",
+    "RunSpec",
+    "SuccessRule",
+    "METRIC_KEYS",
+    "add_command",
+    "aggregate",
+    "find_scenarios",
+    "followed_s",
+    "parse_seeds",
+    "run_campaign",
+    "run_one",
+]
+
+log = logging.getLogger(__name__)
+
+#: Report keys summarised over a campaign (DESIGN §7; None values are left out of each summary).
+METRIC_KEYS: tuple[str, ...] = (
+    "t_airborne_s", "t_acquire_s", "target_in_fov_frac", "detection_frac", "radar_assoc_frac",
+    "wrong_assoc_frac", "landed_dist_m", "followed_s", "sim_time_s", "wall_time_s",
+)
+
+#: ``--quick``: each run's simulated time is capped here (enough to launch, acquire and follow a while).
+QUICK_TIME_LIMIT_S = 120.0
+
+_OK_OUTCOMES = ("landed", "following", "completed")
+
+
+class CampaignError(ValueError):
+    """Bad campaign input (seeds, paths, tree, scenario); the message names what and where."""
+
+
+# -- inputs ---------------------------------------------------------------------------------------
+
+
+def parse_seeds(text: str) -> list[int]:
+    """Seeds from ``"1-50"``, ``"1,3,7"`` or ``"1-10,20"``: ascending, each once.
+
+    Raises:
+        CampaignError: on an empty item, a non-integer, a negative seed or a range whose end is
+            below its start, naming the item.
+    """
+    seeds: set[int] = set()
+    if not text.strip():
+        raise CampaignError("--seeds: empty; expected e.g. 1-50, 1,3,7 or 1-10,20")
+    for item in text.split(","):
+        item = item.strip()
+        lo, sep, hi = item.partition("-")
+        try:
+            a = int(lo)
+            b = int(hi) if sep else a
+        except ValueError:
+            raise CampaignError(f"--seeds: {item!r} is not a seed or a range N-M of non-negative integers") from None
+        if a < 0 or b < 0:
+            raise CampaignError(f"--seeds: {item!r}: seeds are non-negative")
+        if b < a:
+            raise CampaignError(f"--seeds: {item!r}: the range ends below its start")
+        seeds.update(range(a, b + 1))
+    return sorted(seeds)
+
+
+def find_scenarios(path: str | Path) -> list[Path]:
+    """A scenario file, or every ``*.yaml`` in a folder (sorted by name)."""
+    path = Path(path)
+    if path.is_file():
+        return [path]
+    if path.is_dir():
+        files = sorted(p for p in path.iterdir() if p.suffix in (".yaml", ".yml") and p.is_file())
+        if not files:
+            raise CampaignError(f"--scenarios {path}: no .yaml scenario files in this folder")
+        return files
+    raise CampaignError(f"--scenarios {path}: no such file or folder")
+
+
+def _digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One rehearsal of a campaign. Paths are strings so specs pickle to any worker."""
+
+    tree: str
+    scenario: str
+    seed: int
+    camera: bool = True
+    quick: bool = False
+    fingerprint: str = ""  # tree and scenario contents: a stored result counts only if it matches
+
+    @property
+    def scenario_stem(self) -> str:
+        return Path(self.scenario).stem
+
+    @property
+    def key(self) -> str:
+        return f"{self.scenario_stem}/seed_{self.seed:04d}"
+
+
+@dataclass(frozen=True)
+class SuccessRule:
+    """What counts as a successful run (see the module docstring)."""
+
+    min_followed_s: float = 20.0
+    ok_outcomes: tuple[str, ...] = _OK_OUTCOMES
+
+    def __call__(self, row: Mapping[str, Any]) -> bool:
+        if row.get("outcome") not in self.ok_outcomes:
+            return False
+        if row.get("sar_found") is not None:  # a search and rescue: the person must be found
+            return bool(row["sar_found"])
+        if _had_target(row):  # a chase: the target must be acquired and followed
+            if row.get("t_acquire_s") is None:
+                return False
+            followed = row.get("followed_s")
+            return followed is None or followed >= self.min_followed_s
+        return True
+
+
+def _had_target(row: Mapping[str, Any]) -> bool:
+    """Whether the run had a target to chase: the trace saw one, or a FOV share was scored."""
+    if row.get("has_target") is not None:
+        return bool(row["has_target"])
+    return any(row.get(k) is not None for k in ("target_in_fov_frac", "target_in_fov_frac_flight"))
+
+
+@dataclass
+class CampaignConfig:
+    """A campaign: the tree, the scenarios, the seeds and where the results go."""
+
+    tree: Path
+    scenarios: list[Path]
+    seeds: list[int]
+    out_dir: Path
+    workers: int = 1
+    ray_address: str | None = None
+    camera: bool = True
+    quick: bool = False
+    fresh: bool = False  # ignore stored results and fly every run again
+    report_only: bool = False  # fly nothing: report the runs stored so far
+    success: SuccessRule = field(default_factory=SuccessRule)
+
+    def specs(self) -> list[RunSpec]:
+        tree_digest = _digest(self.tree)
+        return [
+            RunSpec(str(self.tree.resolve()), str(sc.resolve()), seed, self.camera, self.quick,
+                    f"{tree_digest}-{_digest(sc)}-{'cam' if self.camera else 'nocam'}{'-quick' if self.quick else ''}")
+            for sc in self.scenarios for seed in self.seeds
+        ]
+
+
+@dataclass
+class CampaignResult:
+    """What :func:`run_campaign` did: the rows of every run, the aggregates and the files written."""
+
+    rows: list[dict]
+    aggregates: dict
+    executed: int  # runs flown by this call (the others were found on disk)
+    files: dict[str, Path]
+
+
+# -- one run (in a worker) ------------------------------------------------------------------------
+
+
+def followed_s(trace: FlightTrace | None, t_acquire_event: str = "acquired") -> float | None:
+    """Seconds with the target in the camera's FOV from the first ``acquired`` event on (None without one).
+
+    Each tick counts for the time to the next tick (the last tick for the median step).
+    """
+    if trace is None or not len(trace):
+        return None
+    ev = trace.first_event(t_acquire_event)
+    if ev is None:
+        return 0.0 if np.isfinite(trace.in_fov).any() else None
+    t = np.asarray(trace.t, float)
+    dt = np.diff(t, append=t[-1] + (float(np.median(np.diff(t))) if len(t) > 1 else 0.0))
+    mask = (np.nan_to_num(trace.in_fov, nan=0.0) > 0.5) & (t >= ev.t)
+    return float(dt[mask].sum())
+
+
+def _worker_init() -> None:
+    """A worker process: one thread for torch and BLAS (the runs are the parallelism), MAVLink 2.
+
+    Set before torch is imported (it reads ``OMP_NUM_THREADS`` then), and again on torch itself
+    in case it already was.
+    """
+    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+        os.environ[var] = "1"
+    os.environ.setdefault("MAVLINK20", "1")
+    torch = sys.modules.get("torch")
+    if torch is not None and torch.get_num_threads() != 1:
+        torch.set_num_threads(1)
+
+
+def _in_worker(runner: Callable[[RunSpec], dict], spec: RunSpec) -> dict:
+    """What a worker process or a Ray task runs: pin the threads, fly ``spec``."""
+    _worker_init()
+    return runner(spec)
+
+
+def _rehearse_kwargs(rehearse: Callable, spec: RunSpec) -> dict:
+    """Keyword arguments for the options this ``rehearse`` accepts (trace, sensors).
+
+    The search-and-rescue scores (``sar_found`` ...) come with the rehearsal's own report.
+    """
+    params = inspect.signature(rehearse).parameters
+    kwargs: dict[str, Any] = {}
+    if "trace" in params:
+        kwargs["trace"] = True
+    if "sensors" in params and not spec.camera:
+        from sitl.bench import (
+            sensors as sensors_mod,  # the rehearsal's sensor options (camera on by default)
+        )
+
+        kwargs["sensors"] = sensors_mod.SensorOptions(camera=False)
+    return kwargs
+
+
+def run_one(spec: RunSpec) -> dict:
+    """Fly one rehearsal; its report row plus ``trace`` (a FlightTrace or None). Never raises."""
+    os.environ.setdefault("MAVLINK20", "1")
+    from sitl.bench.rehearsal import rehearse
+    from sitl.world.scenario import load_scenario
+
+    started = time.perf_counter()
+    try:
+        scenario = load_scenario(spec.scenario)
+        if spec.quick:
+            scenario = dataclasses.replace(scenario, time_limit_s=min(scenario.time_limit_s, QUICK_TIME_LIMIT_S))
+        report = rehearse(spec.tree, scenario, spec.seed, **_rehearse_kwargs(rehearse, spec))
+        row = report.to_dict()
+        trace = getattr(report, "trace", None)
+        row.pop("trace", None)
+    except Exception as exc:  # a run that cannot even start is an error row, not a dead campaign
+        log.exception("run %s failed", spec.key)
+        row = {"outcome": "error", "message": f"{type(exc).__name__}: {exc}", "seed": spec.seed,
+               "wall_time_s": round(time.perf_counter() - started, 3)}
+        trace = None
+    if trace is not None:
+        for k, v in (("tree", Path(spec.tree).name), ("scenario", spec.scenario_stem), ("seed", spec.seed)):
+            trace.meta.setdefault(k, v)
+    followed = followed_s(trace)
+    row.setdefault("followed_s", None if followed is None else round(followed, 2))
+    if trace is not None and len(trace):
+        row.setdefault("has_target", bool(np.isfinite(trace.target_enu).any()))
+    row.update(key=spec.key, scenario_file=spec.scenario_stem, tree_path=spec.tree, scenario_path=spec.scenario,
+               seed=spec.seed, fingerprint=spec.fingerprint)
+    return {"row": row, "trace": trace}
+
+
+# -- storage --------------------------------------------------------------------------------------
+
+
+def _result_path(out_dir: Path, spec: RunSpec) -> Path:
+    return out_dir / "runs" / spec.scenario_stem / f"seed_{spec.seed:04d}.json"
+
+
+def _load_row(out_dir: Path, spec: RunSpec, retry_errors: bool = False) -> dict | None:
+    """The stored row for ``spec``, or None if absent, unreadable or from another tree/scenario.
+
+    ``retry_errors``: also None for a run that ended in ``error`` (a missing file, a bug since fixed:
+    a resumed campaign flies those again).
+    """
+    path = _result_path(out_dir, spec)
+    try:
+        row = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    if row.get("fingerprint") != spec.fingerprint or (retry_errors and row.get("outcome") == "error"):
+        return None
+    return row
+
+
+def _store(out_dir: Path, spec: RunSpec, result: Mapping[str, Any]) -> dict:
+    """Write a run's trace, then its JSON (its presence means done), each by an atomic rename."""
+    path = _result_path(out_dir, spec)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    row = dict(result["row"])
+    trace = result.get("trace")
+    if trace is not None and len(trace):
+        npz = path.with_suffix(".npz")
+        tmp = npz.with_name(f".{npz.stem}.tmp.npz")
+        trace.save(tmp)
+        tmp.replace(npz)
+        row["trace_file"] = str(npz.relative_to(out_dir))
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(row, indent=1, default=_json_default) + "\n")
+    tmp.replace(path)
+    return row
+
+
+def _json_default(obj: Any) -> Any:
+    if hasattr(obj, "item"):
+        return obj.item()
+    return str(obj)
+
+
+# -- executing runs -------------------------------------------------------------------------------
+
+
+def _execute_inline(specs: Sequence[RunSpec], runner: Callable[[RunSpec], dict]) -> Iterator[tuple[RunSpec, dict]]:
+    for spec in specs:
+        yield spec, runner(spec)
+
+
+def _execute_processes(specs: Sequence[RunSpec], runner: Callable[[RunSpec], dict], workers: int) -> Iterator[tuple[RunSpec, dict]]:
+    """Runs in ``workers`` spawned processes, yielded as each finishes; unfinished ones are cancelled on exit."""
+    ctx = multiprocessing.get_context("spawn")  # no fork: torch, threads and the simulator's state stay per process
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+    pending: dict[Future, RunSpec] = {}
+    try:
+        queue = iter(specs)
+        for spec in queue:  # keep the queue short so a stop does not leave many runs submitted
+            pending[pool.submit(_in_worker, runner, spec)] = spec
+            if len(pending) >= 2 * workers:
+                break
+        while pending:
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in done:
+                spec = pending.pop(fut)
+                nxt = next(queue, None)
+                if nxt is not None:
+                    pending[pool.submit(_in_worker, runner, nxt)] = nxt
+                yield spec, fut.result()
+    finally:
+        pool.shutdown(wait=not pending, cancel_futures=True)
+
+
+def _execute_ray(specs: Sequence[RunSpec], runner: Callable[[RunSpec], dict], address: str) -> Iterator[tuple[RunSpec, dict]]:
+    """Runs as Ray tasks (one CPU each) on the cluster at ``address`` (``local`` starts one on this machine).
+
+    The driver's code folders travel with the job (``py_modules``), so cluster nodes need the
+    dependencies but not chaser-bt itself. Results come back to the driver, which stores them.
+    """
+    try:
+        import ray
+    except ImportError:
+        raise CampaignError("--ray: ray is not installed (pip install 'ray>=2.9')") from None
+    import behaviours
+    import chaser_bt
+    import sitl
+
+    modules = [str(Path(m.__file__).parent) for m in (chaser_bt, behaviours, sitl)]
+    started_here = not ray.is_initialized()
+    if started_here:
+        ray.init(address=None if address == "local" else address, runtime_env={"py_modules": modules},
+                 include_dashboard=False, log_to_driver=False)
+    task = ray.remote(num_cpus=1)(_in_worker)
+    refs = {task.remote(runner, spec): spec for spec in specs}
+    try:
+        while refs:
+            done, _ = ray.wait(list(refs), num_returns=1)
+            spec = refs.pop(done[0])
+            yield spec, ray.get(done[0])
+    finally:
+        for ref in refs:
+            ray.cancel(ref, force=True)
+        if started_here:
+            ray.shutdown()
+
+
+# -- the campaign ---------------------------------------------------------------------------------
+
+
+def _check_inputs(config: CampaignConfig) -> None:
+    from chaser_bt.tree import TreeError, load_tree
+    from sitl.world.scenario import ScenarioError, load_scenario
+
+    if config.workers < 1:
+        raise CampaignError(f"--workers {config.workers}: need at least 1")
+    if not config.seeds:
+        raise CampaignError("--seeds: no seeds")
+    if not config.tree.is_file():
+        raise CampaignError(f"{config.tree}: no such tree file")
+    try:
+        load_tree(config.tree)
+    except TreeError as exc:
+        raise CampaignError(f"{config.tree}: invalid tree\n{exc}") from None
+    for sc in config.scenarios:
+        try:
+            load_scenario(sc)
+        except ScenarioError as exc:
+            raise CampaignError(str(exc)) from None
+        except OSError as exc:
+            raise CampaignError(f"{sc}: {exc.strerror or exc}") from None
+    stems = Counter(sc.stem for sc in config.scenarios)
+    if any(n > 1 for n in stems.values()):
+        raise CampaignError(f"--scenarios: two scenario files share a name ({', '.join(s for s, n in stems.items() if n > 1)})")
+
+
+def run_campaign(
+    config: CampaignConfig,
+    *,
+    runner: Callable[[RunSpec], dict] = run_one,
+    on_start: Callable[[int, int], None] | None = None,
+    on_result: Callable[[int, int, dict], None] | None = None,
+    report: bool = True,
+) -> CampaignResult:
+    """Fly every run of ``config`` not already stored, store each as it finishes, then write the report.
+
+    Args:
+        runner: flies one spec (picklable for worker processes; :func:`run_one` by default).
+        on_start: called as ``on_start(total, stored)`` once the inputs are checked, before any run.
+        on_result: called as ``on_result(done, total, row)`` after each run is stored (progress).
+        report: write ``campaign.json``, ``campaign.md`` and the figures at the end.
+
+    Raises:
+        CampaignError: bad input (nothing is flown).
+        KeyboardInterrupt: passed on after the runs finished so far are stored (re-run to resume).
+    """
+    _check_inputs(config)
+    out = config.out_dir
+    out.mkdir(parents=True, exist_ok=True)
+    specs = config.specs()
+    retry = not config.report_only
+    stored = {} if config.fresh else {s.key: r for s in specs if (r := _load_row(out, s, retry)) is not None}
+    if config.report_only:
+        specs = [s for s in specs if s.key in stored]
+        if not specs:
+            raise CampaignError(f"--report-only: no stored runs of this tree and these scenarios and seeds in {out}")
+    todo = [s for s in specs if s.key not in stored]
+    log.info("campaign %s: %d runs, %d stored, %d to fly", config.tree, len(specs), len(stored), len(todo))
+    done = len(stored)
+    if on_start is not None:
+        on_start(len(specs), done)
+    if todo:
+        if config.ray_address:
+            stream = _execute_ray(todo, runner, config.ray_address)
+        elif config.workers > 1 and len(todo) > 1:
+            stream = _execute_processes(todo, runner, min(config.workers, len(todo)))
+        else:
+            stream = _execute_inline(todo, runner)
+        try:
+            for spec, result in stream:
+                stored[spec.key] = _store(out, spec, result)
+                done += 1
+                if on_result is not None:
+                    on_result(done, len(specs), stored[spec.key])
+        finally:
+            stream.close()  # stops the workers now, not when the traceback lets go of the generator
+    rows = [stored[s.key] for s in specs]
+    for row in rows:
+        row["success"] = config.success(row)
+    aggregates = aggregate(rows, config.success)
+    files: dict[str, Path] = {}
+    if report:
+        files = write_campaign_report(config, rows, aggregates)
+    return CampaignResult(rows, aggregates, len(todo), files)
+
+
+# -- aggregation and the report -------------------------------------------------------------------
+
+
+def summarise(values: Iterable[float]) -> dict[str, float | int | None]:
+    """n, mean, min, p10, p25, median, p75, p90, max and IQR of ``values`` (numpy's linear percentiles)."""
+    v = np.asarray([float(x) for x in values if x is not None and math.isfinite(float(x))])
+    if not len(v):
+        return {"n": 0, "mean": None, "min": None, "p10": None, "p25": None, "median": None, "p75": None, "p90": None, "max": None, "iqr": None}
+    p10, p25, p50, p75, p90 = (float(x) for x in np.percentile(v, [10, 25, 50, 75, 90]))
+    return {"n": int(len(v)), "mean": float(v.mean()), "min": float(v.min()), "p10": p10, "p25": p25, "median": p50,
+            "p75": p75, "p90": p90, "max": float(v.max()), "iqr": p75 - p25}
+
+
+def aggregate(rows: Sequence[Mapping[str, Any]], success: Callable[[Mapping[str, Any]], bool] = SuccessRule()) -> dict:
+    """Campaign figures: success rate, outcomes, per-scenario success, and :func:`summarise` of each metric key.
+
+    Each metric holds the paper's value (``paper``) and whether the median beats it (``median_beats_paper``).
+    """
+    from chaser_bt.log.figures import (
+        PAPER_VALUES,  # matplotlib: imported when needed, not with the CLI
+    )
+    from sitl.bench.report import beats_paper
+
+    n = len(rows)
+    ok = [bool(success(r)) for r in rows]
+    by_scenario: dict[str, dict] = {}
+    for r, s in zip(rows, ok):
+        entry = by_scenario.setdefault(str(r.get("scenario_file", r.get("scenario", "?"))), {"runs": 0, "success": 0})
+        entry["runs"] += 1
+        entry["success"] += int(s)
+    for entry in by_scenario.values():
+        entry["success_frac"] = entry["success"] / entry["runs"]
+    metrics = {}
+    for key in METRIC_KEYS:
+        stats = summarise(r.get(key) for r in rows)
+        stats["paper"] = PAPER_VALUES.get(key)
+        stats["median_beats_paper"] = beats_paper(key, stats["median"])
+        metrics[key] = stats
+    extra: dict[str, Any] = {}
+    found = [bool(r["sar_found"]) for r in rows if r.get("sar_found") is not None]
+    if found:
+        extra["sar_found_frac"] = sum(found) / len(found)
+    return {
+        "runs": n,
+        "success": sum(ok),
+        "success_frac": (sum(ok) / n) if n else None,
+        "outcomes": dict(Counter(str(r.get("outcome")) for r in rows)),
+        "by_scenario": by_scenario,
+        "metrics": metrics,
+        **extra,
+    }
+
+
+def _load_traces(out_dir: Path, rows: Sequence[Mapping[str, Any]]) -> list[FlightTrace]:
+    traces = []
+    for r in rows:
+        if r.get("trace_file"):
+            try:
+                traces.append(FlightTrace.load(out_dir / r["trace_file"]))
+            except (OSError, ValueError, KeyError) as exc:
+                log.warning("%s: cannot read its trace: %s", r.get("key"), exc)
+    return traces
+
+
+def write_campaign_report(config: CampaignConfig, rows: Sequence[dict], aggregates: Mapping[str, Any]) -> dict[str, Path]:
+    """``campaign.json`` (config, aggregates, rows), ``campaign.md`` and PNG figures in ``config.out_dir``."""
+    from chaser_bt.log import figures
+    from sitl.bench.report import markdown_table, write_json
+
+    out = config.out_dir
+    files = {"json": out / "campaign.json", "markdown": out / "campaign.md"}
+    write_json(files["json"], {
+        "tree": str(config.tree), "scenarios": [str(s) for s in config.scenarios], "seeds": config.seeds,
+        "camera": config.camera, "quick": config.quick, "success_rule": dataclasses.asdict(config.success),
+        "aggregates": aggregates, "rows": list(rows),
+    })
+    images: list[tuple[str, str]] = []
+    figures.save_figure(figures.plot_metric_cdfs(rows, title=f"{config.tree.name}: {len(rows)} runs"), out / "cdfs.png")
+    files["cdfs"] = out / "cdfs.png"
+    images.append(("Distributions over the runs, the paper's values dashed", "cdfs.png"))
+    traces = _load_traces(out, rows)
+    if traces:
+        files["overhead"] = out / "overhead.png"
+        figures.save_figure(figures.plot_overhead(traces, title=f"{config.tree.name}: overhead tracks of {len(traces)} runs"), files["overhead"])
+        images.append(("Overhead tracks of every run", "overhead.png"))
+        aligned = "acquired" if any(t.first_event("acquired") for t in traces) else None
+        have_target = [t for t in traces if np.isfinite(t.target_enu).any()]
+        if have_target:
+            files["geometry"] = out / "relative_geometry.png"
+            figures.save_figure(figures.plot_relative_geometry(have_target, align_event=aligned), files["geometry"])
+            images.append(("Relative azimuth, elevation and range against the desired (paper figures 7 and 9)"
+                           + (", time from acquisition" if aligned else ""), "relative_geometry.png"))
+        with_belief = next((t for t in traces if t.beliefs), None)
+        if with_belief is not None:
+            files["belief"] = out / "belief.png"
+            figures.save_figure(figures.plot_belief_snapshots(with_belief, title=f"search belief, {with_belief.meta.get('scenario', '')} seed {with_belief.meta.get('seed', '')}"), files["belief"])
+            images.append(("Search belief snapshots of one run", "belief.png"))
+    files["markdown"].write_text(_campaign_markdown(config, rows, aggregates, images, markdown_table))
+    return files
+
+
+def _campaign_markdown(config, rows, agg, images, markdown_table) -> str:
+    rule = config.success
+    parts = [
+        f"# Campaign: {config.tree.name}", "",
+        f"{agg['runs']} runs ({len(config.scenarios)} scenario(s) x {len(config.seeds)} seeds"
+        f"{', no camera' if not config.camera else ''}{', quick' if config.quick else ''}); "
+        f"**success {agg['success']}/{agg['runs']} = {format(agg['success_frac'] or 0.0, '.0%')}**.", "",
+        f"Success: outcome in {', '.join(rule.ok_outcomes)}; with a target, acquired and kept in the camera's FOV "
+        f"≥ {rule.min_followed_s:g} s after acquisition; where `sar_found` is reported, found.", "",
+        "## Figures against the paper", "",
+        markdown_table(("key", "runs", "median", "p25–p75", "p10–p90", "paper", "median beats the paper"), [
+            (k, m["n"], m["median"], _range(m["p25"], m["p75"]), _range(m["p10"], m["p90"]), m["paper"], m["median_beats_paper"])
+            for k, m in agg["metrics"].items()]),
+        "", "## Outcomes", "", markdown_table(("outcome", "runs"), sorted(agg["outcomes"].items())),
+        "", "## By scenario", "",
+        markdown_table(("scenario", "runs", "success"), [(s, e["runs"], e["success_frac"]) for s, e in agg["by_scenario"].items()]),
+    ]
+    if "sar_found_frac" in agg:
+        parts += ["", f"Search and rescue: found in {agg['sar_found_frac']:.0%} of runs."]
+    failed = [r for r in rows if not r.get("success")]
+    if failed:
+        parts += ["", "## Runs that did not succeed", "",
+                  markdown_table(("run", "outcome", "message"), [(r.get("key"), r.get("outcome"), str(r.get("message", ""))[:120]) for r in failed])]
+    for caption, name in images:
+        parts += ["", f"## {caption}", "", f"![{caption}]({name})"]
+    return "\n".join(parts) + "\n"
+
+
+def _range(lo: float | None, hi: float | None) -> str:
+    return "–" if lo is None or hi is None else f"{lo:.3g} – {hi:.3g}"
+
+
+# -- command line ---------------------------------------------------------------------------------
+
+
+class _Progress:
+    """A progress bar (tqdm when installed) or, without it, one line per run with the ETA, on stderr."""
+
+    def __init__(self, stream=sys.stderr, use_tqdm: bool = True) -> None:
+        self.stream, self.use_tqdm = stream, use_tqdm
+        self.already = 0
+        self.start = time.monotonic()
+        self.failed = 0
+        self.bar = None
+
+    def begin(self, total: int, already: int) -> None:
+        self.already, self.start = already, time.monotonic()
+        if already:
+            print(f"{already} of {total} runs already done: resuming", file=self.stream)
+        if self.use_tqdm:
+            try:
+                from tqdm import tqdm
+            except ImportError:
+                return
+            self.bar = tqdm(total=total, initial=already, unit="run", file=self.stream, dynamic_ncols=True)
+
+    def __call__(self, done: int, total: int, row: dict) -> None:
+        self.failed += row.get("outcome") in ("crashed", "error", "failsafe", "timeout")
+        if self.bar is not None:
+            self.bar.set_postfix_str(f"{row.get('key')}: {row.get('outcome')}, not ok {self.failed}", refresh=False)
+            self.bar.update(1)
+            return
+        flown = done - self.already
+        rate = flown / max(time.monotonic() - self.start, 1e-9)
+        eta = (total - done) / rate if rate > 0 else math.inf
+        print(f"[{done}/{total}] {row.get('key')}: {row.get('outcome')} | not ok {self.failed} | "
+              f"ETA {_duration(eta)}", file=self.stream, flush=True)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _duration(seconds: float) -> str:
+    if not math.isfinite(seconds):
+        return "?"
+    m, s = divmod(int(round(seconds)), 60)
+    return f"{m}m{s:02d}s" if m else f"{s}s"
+
+
+def add_command(subparsers) -> None:
+    """``chaser-bt campaign``: see the module docstring."""
+    p = subparsers.add_parser("campaign", help="rehearse a tree over many scenarios and seeds in parallel; write a report",
+                              description=__doc__.splitlines()[0])
+    p.add_argument("tree", type=Path)
+    p.add_argument("--scenarios", required=True, type=Path, metavar="DIR_OR_FILE", help="a scenario file or a folder of them")
+    p.add_argument("--seeds", default="1-50", help="e.g. 1-50, 1,3,7 or 1-10,20 (default 1-50)")
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="worker processes (default: one per core)")
+    p.add_argument("--out", required=True, type=Path, metavar="DIR", help="results folder; re-running into it resumes")
+    p.add_argument("--ray", metavar="ADDRESS", help="run on a Ray cluster (ADDRESS as ray.init takes it; 'local' starts one here)")
+    p.add_argument("--no-camera", action="store_true", help="rehearse without the rendered camera (faster)")
+    p.add_argument("--quick", action="store_true", help=f"cap each run at {QUICK_TIME_LIMIT_S:g} s of simulated time")
+    p.add_argument("--fresh", action="store_true", help="fly every run again, ignoring stored results")
+    p.add_argument("--report-only", action="store_true", help="fly nothing: write the report of the runs stored so far")
+    p.add_argument("--min-followed-s", type=float, default=SuccessRule.min_followed_s,
+                   help="success needs the target in the FOV this long after acquisition (default %(default)s)")
+    p.add_argument("--min-success", type=float, default=0.0, metavar="FRAC",
+                   help="exit 1 when the success rate is below FRAC (default 0: any finished campaign exits 0)")
+    p.set_defaults(handler=_campaign_command)
+
+
+def _campaign_command(args: argparse.Namespace) -> int:
+    try:
+        config = CampaignConfig(
+            tree=args.tree, scenarios=find_scenarios(args.scenarios), seeds=parse_seeds(args.seeds), out_dir=args.out,
+            workers=args.workers, ray_address=args.ray, camera=not args.no_camera, quick=args.quick, fresh=args.fresh,
+            report_only=args.report_only,
+            success=SuccessRule(min_followed_s=args.min_followed_s),
+        )
+        if args.min_followed_s < 0:
+            raise CampaignError(f"--min-followed-s {args.min_followed_s}: must be >= 0")
+        if not 0.0 <= args.min_success <= 1.0:
+            raise CampaignError(f"--min-success {args.min_success}: must be in [0, 1]")
+        progress = _Progress()
+        try:
+            result = run_campaign(config, on_start=progress.begin, on_result=progress)
+        finally:
+            progress.close()
+    except CampaignError as exc:
+        print(f"chaser-bt campaign: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"\nchaser-bt campaign: stopped; finished runs are in {args.out}/runs; run the same command again to resume",
+              file=sys.stderr)
+        return 130
+    agg = result.aggregates
+    print(f"{agg['runs']} runs ({result.executed} flown now): success {agg['success']}/{agg['runs']}")
+    for key in ("t_airborne_s", "t_acquire_s", "target_in_fov_frac", "detection_frac", "radar_assoc_frac"):
+        m = agg["metrics"][key]
+        if m["n"]:
+            print(f"  {key:<20} median {m['median']:.4g} (p25-p75 {m['p25']:.3g}-{m['p75']:.3g}, n={m['n']}); paper {m['paper']}")
+    print(f"report: {result.files.get('markdown', args.out)}")
+    return 0 if (agg["success_frac"] or 0.0) >= args.min_success else 1
+
+
+if __name__ == "__main__":  # python -m sitl.bench.campaign ... (the same as chaser-bt campaign)
+    _parser = argparse.ArgumentParser(prog="python -m sitl.bench.campaign")
+    add_command(_parser.add_subparsers(dest="command"))
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    _args = _parser.parse_args(["campaign", *sys.argv[1:]])
+    sys.exit(_args.handler(_args))

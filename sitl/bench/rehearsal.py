@@ -1,0 +1,253 @@
+"""Rehearsal: fly a mission tree against the in-process simulator and score it (DESIGN §7).
+
+The mission side is exactly what flies a real aircraft: a :class:`VehicleLink` speaking encoded
+MAVLink (over an in-memory pipe instead of a radio), the :class:`MissionRunner` and a validated
+tree. The two halves run lock-step in one thread: one physics step, one non-blocking poll of the
+link, a tick when the mission clock says one is due. Nothing reads the wall clock except the
+report's ``wall_time_s``, so a seed reproduces a run exactly.
+
+The mission gets every sensor the scenario provides (:mod:`sitl.bench.sensors`: radar, rendered camera,
+target telemetry), as a real flight would. Only this module and :mod:`sitl.bench.scoring` look at the
+simulator's ground truth, and only to score the run (DESIGN §7) and fill its flight trace.
+"""
+
+from __future__ import annotations
+
+import copy
+import logging
+import math
+import statistics
+import time
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import py_trees
+
+from chaser_bt.log.trace import FlightTrace
+from chaser_bt.mission.runner import MissionRunner, StatusChange
+from chaser_bt.tree import MissionTree, load_tree, reset_blackboard
+from chaser_bt.vehicle import LinkConfig, VehicleError
+from sitl.bench.in_process import InProcessVehicle
+from sitl.bench.sar_scoring import SarObserver
+from sitl.bench.scoring import RehearsalObserver
+from sitl.bench.sensors import SensorOptions, build_sensors
+from sitl.simulator import Simulator
+from sitl.world.scenario import Scenario, load_scenario
+
+__all__ = ["RehearsalReport", "rehearse"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class RehearsalReport:
+    """The rehearsal's JSON report (keys of DESIGN §7 that apply to this mission, and more).
+
+    The scores (``t_airborne_s`` ... ``wrong_assoc_frac``) are defined in :mod:`sitl.bench.scoring`; each is
+    None where it does not apply. ``trace`` (with ``rehearse(trace=True)``) is not part of
+    :meth:`to_dict`.
+    """
+
+    outcome: str  # landed | completed | following | timeout | failsafe | crashed | error
+    tree: str
+    scenario: str
+    seed: int
+    sim_time_s: float
+    wall_time_s: float
+    realtime_factor: float
+    ticks: int
+    status_changes: int  # entries in the runner's tick log
+    tick_ms_median: float
+    landed_dist_m: float | None  # horizontal distance from home at the last touchdown
+    max_alt_m: float  # highest point above home (truth)
+    distance_flown_m: float  # horizontal path length (truth)
+    battery_used_pct: float
+    message: str  # why it ended: the last running leaf's feedback, or the error
+    t_airborne_s: float | None = None  # radar validation -> take-off altitude (paper 15.48 s)
+    t_acquire_s: float | None = None  # take-off altitude -> first vision acquisition (paper 4.95 s)
+    target_in_fov_frac: float | None = None  # from acquisition to the end of following (paper 0.91)
+    target_in_fov_frac_flight: float | None = None  # over all autonomous flight
+    detection_frac: float | None = None  # camera frames in that span with a true detection (paper 0.66)
+    radar_assoc_frac: float | None = None  # 1 s windows in flight with the ownship's track associated (paper 0.917)
+    wrong_assoc_frac: float | None = None  # ... associated to a track that is not the ownship
+    radar_windows: int = 0  # 1 s windows behind radar_assoc_frac
+    detection_frames: int = 0  # camera frames behind detection_frac (from acquisition to the end of following)
+    sensors: list[str] = field(default_factory=list)  # the resources the mission got
+    radar_pose: str | None = None  # calibrated | surveyed
+    radar_pose_err_m: float | None = None  # mission's radar position minus the truth
+    radar_yaw_err_deg: float | None = None
+    sensors_wall_s: float = 0.0  # building the sensors (calibration, detector load), not in wall_time_s
+    sar_found: bool | None = None  # search and rescue: the mission's last find lies within 10 m of a person
+    sar_find_error_m: float | None = None  # ... its distance to the nearest person
+    sar_t_find_s: float | None = None  # ... mission time of the first find
+    trace: FlightTrace | None = field(default=None, repr=False, compare=False)
+
+    def to_dict(self) -> dict:
+        """Every key but the trace (JSON-ready)."""
+        return {f.name: copy.copy(getattr(self, f.name)) for f in fields(self) if f.name != "trace"}
+
+
+class _Scorer:
+    """Follows the ground truth during a run: touchdowns, height, distance flown."""
+
+    def __init__(self) -> None:
+        self.was_airborne = False
+        self.landed_at: np.ndarray | None = None
+        self.max_alt_m = 0.0
+        self.distance_m = 0.0
+        self._last_xy: np.ndarray | None = None
+
+    def observe(self, truth) -> None:
+        pos = np.asarray(truth.pos_enu, dtype=float)
+        self.max_alt_m = max(self.max_alt_m, float(pos[2]))
+        if self._last_xy is not None:
+            self.distance_m += float(np.hypot(*(pos[:2] - self._last_xy)))
+        self._last_xy = pos[:2].copy()
+        if not truth.on_ground:
+            self.was_airborne = True
+        elif self.was_airborne:  # on the ground after flying: the latest touchdown point
+            self.landed_at = pos.copy()
+
+    @property
+    def landed_dist_m(self) -> float | None:
+        return None if self.landed_at is None else float(np.hypot(*self.landed_at[:2]))
+
+
+def rehearse(
+    tree: MissionTree | str | Path,
+    scenario: Scenario | str | Path,
+    seed: int,
+    *,
+    rate_hz: float = 10.0,
+    link_config: LinkConfig | None = None,
+    on_tick: Callable[[list[StatusChange]], None] | None = None,
+    ground_tap: Callable[[bytes], None] | None = None,
+    sensors: SensorOptions | None = None,
+    on_start: Callable[[MissionRunner, InProcessVehicle, dict], None] | None = None,
+    trace: bool = False,
+) -> RehearsalReport:
+    """Fly ``tree`` against a fresh simulator built from ``scenario`` with ``seed``; score it.
+
+    ``on_tick`` is called after every tick with the tick's status changes (``--show-ticks``).
+    ``ground_tap`` sees every chunk of bytes the mission sends to the vehicle (see :class:`InProcessVehicle`).
+    ``sensors`` says which sensors the mission gets (default :class:`SensorOptions`: every one the
+    scenario provides). ``on_start(runner, vehicle, resources)`` runs after the tree's setup, before
+    the first tick (a recorder's hook). ``trace`` fills ``report.trace`` (:class:`FlightTrace`).
+    """
+    reset_blackboard()
+    if not isinstance(tree, MissionTree):
+        tree = load_tree(tree)
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+
+    vehicle = InProcessVehicle(scenario, seed, link_config, ground_tap)
+    sim = vehicle.sim
+    sensors_start = time.perf_counter()
+    options = sensors or SensorOptions()
+    mission_sensors = build_sensors(vehicle, options, seed)
+    sensors_wall = time.perf_counter() - sensors_start
+    runner = MissionRunner(tree, vehicle.link, vehicle.clock, rate_hz=rate_hz, resources=mission_sensors.resources)
+    if on_tick is not None:
+        runner.on_tick(on_tick)
+    observer = RehearsalObserver(sim, vehicle.link, runner, mission_sensors, trace=trace)
+    sar = SarObserver(sim)
+    scorer = _Scorer()
+    battery_start = sim.autopilot.battery().remaining_pct
+
+    outcome, message = "timeout", f"time limit of {scenario.time_limit_s:.0f} s reached"
+    wall_start = time.perf_counter()
+    try:
+        runner.setup()
+        if on_start is not None:
+            on_start(runner, vehicle, mission_sensors.resources)
+        while sim.time_s < scenario.time_limit_s:
+            vehicle.step()
+            truth = sim.truth
+            scorer.observe(truth)
+            if truth.crashed:
+                outcome, message = "crashed", "the vehicle hit the ground hard"
+                break
+            if runner.tick_if_due():
+                observer.after_tick(vehicle.clock.now())
+                sar.after_tick()
+                if runner.finished:
+                    message = runner.tip_message()
+                    outcome = _finished_outcome(runner.status, sim)
+                    runner.stop(f"root returned {runner.status.name}")
+                    break
+        else:
+            if observer.following():
+                outcome = "following"
+                message = f"following at the time limit of {scenario.time_limit_s:.0f} s: {runner.tip_message()}"
+    except VehicleError as exc:
+        # The mission lost the vehicle (e.g. a scripted link loss): score what the autopilot's own
+        # failsafes make of it.
+        runner.stop(str(exc))
+        outcome, message = _fly_out_failsafe(sim, scorer, scenario.time_limit_s, str(exc))
+    except Exception as exc:  # a leaf raised: the run is an error, and it still gets a report
+        log.exception("rehearsal tick raised")
+        runner.stop(str(exc))
+        outcome, message = "error", f"{type(exc).__name__}: {exc}"
+    finally:
+        mission_sensors.close()
+    wall = time.perf_counter() - wall_start
+
+    ticks_ms = runner.tick_wall_ms
+    pose_err = _radar_pose_error(sim, mission_sensors)
+    report = RehearsalReport(
+        outcome=outcome,
+        tree=tree.name,
+        scenario=scenario.name,
+        seed=seed,
+        sim_time_s=round(sim.time_s, 3),
+        wall_time_s=round(wall, 3),
+        realtime_factor=round(sim.time_s / wall, 1) if wall > 0 else math.inf,
+        ticks=runner.ticks,
+        status_changes=len(runner.tick_log),
+        tick_ms_median=round(statistics.median(ticks_ms), 4) if ticks_ms else 0.0,
+        landed_dist_m=None if scorer.landed_dist_m is None else round(scorer.landed_dist_m, 2),
+        max_alt_m=round(scorer.max_alt_m, 2),
+        distance_flown_m=round(scorer.distance_m, 1),
+        battery_used_pct=round(battery_start - sim.autopilot.battery().remaining_pct, 2),
+        message=message,
+        **observer.scores().report_keys(),
+        **sar.report_keys(),
+        sensors=sorted(mission_sensors.resources),
+        radar_pose=None if mission_sensors.radar_pose is None else mission_sensors.radar_pose.method,
+        radar_pose_err_m=pose_err[0],
+        radar_yaw_err_deg=pose_err[1],
+        sensors_wall_s=round(sensors_wall, 3),
+    )
+    report.trace = observer.trace({"tree": tree.name, "scenario": scenario.name, "seed": seed, "outcome": outcome})
+    return report
+
+
+def _radar_pose_error(sim: Simulator, sensors) -> tuple[float | None, float | None]:
+    """How far the mission's radar pose is from the truth: position (m) and boresight heading (deg)."""
+    if sensors.radar is None or sim.radar is None:
+        return None, None
+    mine, true = sensors.radar.pose, sim.radar.pose
+    d = float(np.linalg.norm(mine.position_enu - true.position_enu))
+    dy = (mine.yaw_pitch_roll[0] - true.yaw_pitch_roll[0] + math.pi) % (2 * math.pi) - math.pi
+    return round(d, 2), round(math.degrees(dy), 3)
+
+
+def _finished_outcome(status: py_trees.common.Status, sim: Simulator) -> str:
+    if status == py_trees.common.Status.FAILURE:
+        return "error"
+    return "landed" if sim.truth.on_ground and not sim.autopilot.armed else "completed"
+
+
+def _fly_out_failsafe(sim: Simulator, scorer: _Scorer, limit_s: float, why: str) -> tuple[str, str]:
+    """Keep simulating without the mission until the vehicle is down or time runs out."""
+    while sim.time_s < limit_s and not (sim.truth.on_ground and not sim.autopilot.armed):
+        sim.step()
+        truth = sim.truth
+        scorer.observe(truth)
+        if truth.crashed:
+            return "crashed", f"{why}; then the vehicle hit the ground hard"
+    if sim.truth.on_ground and not sim.autopilot.armed:
+        return "failsafe", f"{why}; the autopilot's failsafe brought it down"
+    return "timeout", f"{why}; still airborne at the time limit"

@@ -1,0 +1,482 @@
+"""Scoring a rehearsal against ground truth: the DESIGN §7 figures and the flight trace.
+
+Only this module (and the rehearsal that calls it) reads the simulator's truth. The scores:
+
+- ``t_airborne_s``: the first write of ``/radar/validated_track`` to the first tick at which the
+  vehicle's telemetry altitude above home reaches the take-off altitude, by the take-off node's own
+  rule (the first ``ArmAndTakeoff`` node's ``altitude_m - tolerance_m``); paper 15.48 s.
+- ``t_acquire_s``: that moment to the first ``/target/estimate`` within 10 m of the true target, or
+  within 3 deg of its true bearing from the camera; paper 4.95 s.
+- ``target_in_fov_frac``: the share of ticks in autonomous flight with the true target inside the
+  camera's frustum (true pose and :class:`~chaser_bt.vision.camera.CameraModel`, any range), from
+  the first acquisition to the end of following, as the paper scored it (0.91);
+  ``target_in_fov_frac_flight`` the same over all autonomous flight. Autonomous flight: armed,
+  airborne, in a mode the mission flies (GUIDED or ALT_HOLD: not RTL/LAND/LOITER/BRAKE/failsafes),
+  and the mission's phase not a safety hand-over (``safety:...``, e.g. the pilot's gate off).
+- ``detection_frac``: the share of camera frames in that span whose chosen detector/tracker box
+  matches the target's true box in the rendered frame (IoU >= 0.3, or the box centre inside it);
+  paper 0.66.
+- ``radar_assoc_frac`` / ``wrong_assoc_frac``: 1 s windows of flight with the ownship in the radar's
+  coverage and the radar on; in each, the association the mission's correlator held for most ticks:
+  a track that follows the ownship (right), another track (wrong) or none (paper 0.917); the radar
+  model's truth says which track follows what.
+
+Each is None where it does not apply (no radar, no camera, no target, never airborne...).
+:func:`score_ticks` computes them from a list of :class:`TickRecord` (pure; tests build records by
+hand); :class:`RehearsalObserver` records them while a rehearsal flies and fills the
+:class:`~chaser_bt.log.trace.FlightTrace`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+import py_trees
+from scipy.spatial.transform import Rotation
+
+from chaser_bt.geo import heading_to_enu_yaw
+from chaser_bt.log.trace import BeliefSnapshot, FlightTrace, TraceEvent
+from chaser_bt.radar.correlator import Association, TrackCorrelator, TrackPoints
+from chaser_bt.vision.camera import CameraModel
+
+__all__ = ["AUTONOMOUS_MODES", "FOLLOW_LEAVES", "TickRecord", "Scores", "score_ticks", "box_iou", "box_matches",
+           "estimate_matches", "in_frustum", "belief_snapshot", "association_windows", "AssociationRecorder", "RehearsalObserver"]
+
+AUTONOMOUS_MODES = ("GUIDED", "ALT_HOLD")
+FOLLOW_LEAVES = ("CVFollow", "FollowGlobal")
+FOLLOW_PHASE = "follow"
+VALIDATED_TRACK_KEY = "/radar/validated_track"
+ESTIMATE_KEY = "/target/estimate"
+PHASE_KEY = "/mission/phase"
+BELIEF_KEY = "/search/belief"
+ACQUIRE_TOL_M = 10.0
+ACQUIRE_TOL_RAD = math.radians(3.0)
+LOST_AFTER_S = 2.0  # no matching estimate for this long after an acquisition: "lost" (DESIGN §3 stale data)
+BELIEF_EVERY_S = 5.0
+
+
+# --- geometry of a match ------------------------------------------------------------------------
+
+def box_iou(a: Sequence[float], b: Sequence[float]) -> float:
+    """Intersection over union of two (x0, y0, x1, y1) boxes."""
+    iw = max(0.0, min(a[2], b[2]) - max(a[0], b[0]))
+    ih = max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
+    inter = iw * ih
+    union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter
+    return inter / union if union > 0 else 0.0
+
+
+def box_matches(box: Sequence[float], truth: Sequence[float], min_iou: float = 0.3) -> bool:
+    """A detection matches the truth box when IoU >= ``min_iou`` or its centre lies inside the truth box."""
+    cx, cy = 0.5 * (box[0] + box[2]), 0.5 * (box[1] + box[3])
+    return box_iou(box, truth) >= min_iou or (truth[0] <= cx <= truth[2] and truth[1] <= cy <= truth[3])
+
+
+def estimate_matches(position_enu: np.ndarray, bearing_enu: np.ndarray | None, camera_enu: np.ndarray,
+                     target_enu: np.ndarray, tol_m: float = ACQUIRE_TOL_M, tol_rad: float = ACQUIRE_TOL_RAD) -> bool:
+    """Whether an estimate is of the true target: within ``tol_m`` of it, or its bearing within
+    ``tol_rad`` of the true bearing from the camera (the range from a box is the loose part)."""
+    if np.linalg.norm(np.asarray(position_enu, float) - target_enu) <= tol_m:
+        return True
+    if bearing_enu is None or not np.all(np.isfinite(bearing_enu)):
+        return False
+    to_target = np.asarray(target_enu, float) - camera_enu
+    n = np.linalg.norm(to_target) * np.linalg.norm(bearing_enu)
+    return bool(n > 0 and math.acos(min(1.0, max(-1.0, float(np.dot(to_target, bearing_enu)) / n))) <= tol_rad)
+
+
+def in_frustum(camera: CameraModel, target_enu: np.ndarray, vehicle_enu: np.ndarray, attitude: Rotation) -> bool:
+    """Whether the target projects inside the image (in front of the camera, any range)."""
+    px, front = camera.project(np.asarray(target_enu, float)[None], vehicle_enu, attitude)
+    u, v = px[0]
+    return bool(front[0] and 0.0 <= u <= camera.width_px and 0.0 <= v <= camera.height_px)
+
+
+def belief_snapshot(t: float, belief: Any) -> BeliefSnapshot:
+    """A search belief (:class:`chaser_bt.search.belief.BeliefGrid`) for the trace: normalised and
+    summed over altitude, with the east and north cell centres."""
+    spec = belief.spec
+    x = spec.origin_enu[0] + spec.spacing_m * np.arange(spec.shape[0])
+    y = spec.origin_enu[1] + spec.spacing_m * np.arange(spec.shape[1])
+    return BeliefSnapshot(t, x, y, belief.normalized().sum(axis=2))
+
+
+# --- radar association windows --------------------------------------------------------------------
+
+def association_windows(t: np.ndarray, state: np.ndarray, counted: np.ndarray, window_s: float = 1.0) -> tuple[int, float | None, float | None]:
+    """1 s windows of ``t`` where most samples are ``counted``; in each, the state held by a strict
+    majority of its samples (1 right, -1 wrong, else none). Returns (windows, right share, wrong share)
+    (as :func:`sitl.bench.radar_trials.score_correlator` scores the paper's correlation test)."""
+    t, state, counted = np.asarray(t, float), np.asarray(state, int), np.asarray(counted, bool)
+    if t.size == 0:
+        return 0, None, None
+    win = np.floor(t / window_s).astype(np.int64)
+    n = right = wrong = 0
+    for w in np.unique(win):
+        sel = win == w
+        if counted[sel].mean() < 0.5:
+            continue
+        n += 1
+        s = state[sel & counted]
+        values, counts = np.unique(s, return_counts=True)
+        held = values[np.argmax(counts)] if counts.max() * 2 > s.size else 0
+        right += int(held == 1)
+        wrong += int(held == -1)
+    return n, (right / n if n else None), (wrong / n if n else None)
+
+
+class AssociationRecorder:
+    """Wraps the mission's correlator and remembers its latest decision (for scoring only)."""
+
+    def __init__(self, inner: TrackCorrelator) -> None:
+        self.inner = inner
+        self.last_t: float | None = None
+        self.last_id: int | None = None
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)
+
+    def add_ownship(self, *args: Any, **kwargs: Any) -> None:
+        self.inner.add_ownship(*args, **kwargs)
+
+    def add_tracks(self, points: TrackPoints) -> None:
+        self.inner.add_tracks(points)
+
+    def associate(self, t: float) -> Association:
+        a = self.inner.associate(t)
+        self.last_t, self.last_id = t, a.associated_id
+        return a
+
+    def reset(self) -> None:
+        self.inner.reset()
+
+
+# --- per-tick records and the scores -----------------------------------------------------------
+
+@dataclass
+class TickRecord:
+    """What scoring needs from one mission tick (truth and the mission's side).
+
+    Args:
+        t: mission time (s).
+        autonomous: armed, airborne, in a mission mode, not handed over (see the module docstring).
+        airborne: off the ground (truth).
+        validated: ``/radar/validated_track`` has been written.
+        alt_reached: telemetry altitude at or above the take-off altitude.
+        following: the mission is in its follow phase (or a follow leaf is running).
+        in_fov: the true target inside the camera frustum (None: no target).
+        acquired: a fresh estimate this tick that matches the true target (None: no fresh estimate).
+        frame: a camera frame was processed this tick.
+        frame_matched: that frame's chosen box matches the true target box.
+        radar_state: 1 ownship's track associated, -1 another track, 0 none.
+        radar_counted: airborne, radar on and the ownship in its coverage.
+    """
+
+    t: float
+    autonomous: bool = False
+    airborne: bool = False
+    validated: bool = False
+    alt_reached: bool = False
+    following: bool = False
+    in_fov: bool | None = None
+    acquired: bool | None = None
+    frame: bool = False
+    frame_matched: bool = False
+    radar_state: int = 0
+    radar_counted: bool = False
+
+
+@dataclass(frozen=True)
+class Scores:
+    """The DESIGN §7 figures of one run (None where they do not apply) and the times behind them."""
+
+    t_airborne_s: float | None = None
+    t_acquire_s: float | None = None
+    target_in_fov_frac: float | None = None
+    target_in_fov_frac_flight: float | None = None
+    detection_frac: float | None = None
+    radar_assoc_frac: float | None = None
+    wrong_assoc_frac: float | None = None
+    radar_windows: int = 0
+    detection_frames: int = 0  # frames in the scored span
+    t_validated: float | None = None
+    t_alt_reached: float | None = None
+    t_acquired: float | None = None
+    t_follow_end: float | None = None
+
+    def report_keys(self) -> dict[str, Any]:
+        """The keys the rehearsal report carries (rounded)."""
+        def r(v: float | None, nd: int) -> float | None:
+            return None if v is None else round(float(v), nd)
+
+        return {"t_airborne_s": r(self.t_airborne_s, 2), "t_acquire_s": r(self.t_acquire_s, 2),
+                "target_in_fov_frac": r(self.target_in_fov_frac, 3),
+                "target_in_fov_frac_flight": r(self.target_in_fov_frac_flight, 3),
+                "detection_frac": r(self.detection_frac, 3), "radar_assoc_frac": r(self.radar_assoc_frac, 3),
+                "wrong_assoc_frac": r(self.wrong_assoc_frac, 3), "radar_windows": self.radar_windows,
+                "detection_frames": self.detection_frames}
+
+
+def _first(records: Sequence[TickRecord], after: float, pred) -> float | None:
+    return next((r.t for r in records if r.t >= after and pred(r)), None)
+
+
+def _share(flags: list[bool]) -> float | None:
+    return sum(flags) / len(flags) if flags else None
+
+
+def score_ticks(records: Sequence[TickRecord], *, has_target: bool = True, has_camera: bool = True,
+                has_radar: bool = True) -> Scores:
+    """The scores of a run from its tick records (see the module docstring for each definition)."""
+    t_val = _first(records, -math.inf, lambda r: r.validated)
+    t_alt = None if t_val is None else _first(records, t_val, lambda r: r.alt_reached)
+    t_acq = None if t_alt is None or not has_target else _first(records, t_alt, lambda r: bool(r.acquired))
+    t_end = None
+    if t_acq is not None:
+        follow = [r.t for r in records if r.t >= t_acq and r.following]
+        auto = [r.t for r in records if r.t >= t_acq and r.autonomous]
+        t_end = follow[-1] if follow else (auto[-1] if auto else t_acq)
+    fov = fov_flight = det = None
+    frames = 0
+    if has_target and has_camera:
+        fov_flight = _share([bool(r.in_fov) for r in records if r.autonomous and r.in_fov is not None])
+        if t_acq is not None:
+            span = [r for r in records if t_acq <= r.t <= t_end and r.autonomous]
+            fov = _share([bool(r.in_fov) for r in span if r.in_fov is not None])
+            shots = [r.frame_matched for r in span if r.frame]
+            frames, det = len(shots), _share(shots)
+    windows, right, wrong = 0, None, None
+    if has_radar:
+        windows, right, wrong = association_windows(np.array([r.t for r in records]),
+                                                    np.array([r.radar_state for r in records]),
+                                                    np.array([r.radar_counted for r in records]))
+    return Scores(
+        t_airborne_s=None if t_alt is None else t_alt - t_val,
+        t_acquire_s=None if t_acq is None else t_acq - t_alt,
+        target_in_fov_frac=fov, target_in_fov_frac_flight=fov_flight, detection_frac=det,
+        radar_assoc_frac=right, wrong_assoc_frac=wrong, radar_windows=windows, detection_frames=frames,
+        t_validated=t_val, t_alt_reached=t_alt, t_acquired=t_acq, t_follow_end=t_end,
+    )
+
+
+# --- watching a live rehearsal -----------------------------------------------------------------
+
+def _blackboard(key: str) -> Any:
+    return py_trees.blackboard.Blackboard.storage.get(key)
+
+
+def _nodes_named(root: py_trees.behaviour.Behaviour, class_names: Sequence[str]) -> list[Any]:
+    return [n for n in root.iterate() if type(n).__name__ in class_names]
+
+
+def _port(node: Any, name: str) -> Any:
+    try:
+        return node.get_input(name)
+    except Exception:  # an unset remapped key: not known (yet)
+        return None
+
+
+@dataclass
+class _TraceColumns:
+    t: list[float] = field(default_factory=list)
+    own: list[np.ndarray] = field(default_factory=list)
+    yaw: list[float] = field(default_factory=list)
+    target: list[np.ndarray] = field(default_factory=list)
+    in_fov: list[float] = field(default_factory=list)
+    detected: list[float] = field(default_factory=list)
+    mode: list[str] = field(default_factory=list)
+    phase: list[str] = field(default_factory=list)
+    tip: list[str] = field(default_factory=list)
+
+
+class RehearsalObserver:
+    """Records a :class:`TickRecord` (and, with ``trace``, a trace row) after every mission tick.
+
+    Args:
+        sim: the simulator (truth).
+        link: the mission's vehicle link (what the mission knows: telemetry altitude).
+        runner: the mission runner (tree, tip).
+        sensors: the rehearsal's :class:`sitl.bench.sensors.MissionSensors`.
+        trace: also fill a :class:`FlightTrace`.
+    """
+
+    def __init__(self, sim: Any, link: Any, runner: Any, sensors: Any, trace: bool = False) -> None:
+        self.sim, self.link, self.runner, self.sensors = sim, link, runner, sensors
+        self.records: list[TickRecord] = []
+        self.events: list[TraceEvent] = []
+        self.beliefs: list[BeliefSnapshot] = []
+        self._cols = _TraceColumns() if trace else None
+        # The target whose truth is scored: the first intruder, else the first scripted target.
+        self._intruder = sim.intruders[0] if sim.intruders else None
+        self._scripted = None if self._intruder is not None or not sim.scenario.targets else sim.scenario.targets[0]
+        self.has_target = self._intruder is not None or self._scripted is not None
+        self.camera: CameraModel = (sensors.camera.pipeline.camera if sensors.camera is not None else CameraModel())
+        self.has_camera = sensors.camera is not None
+        self.has_radar = sensors.radar is not None
+        self._recorder: AssociationRecorder | None = None
+        self._labels: dict[int, str] = {}
+        if sensors.radar is not None:
+            self._recorder = AssociationRecorder(sensors.radar.correlator)
+            sensors.radar.correlator = self._recorder
+            sim.add_radar_consumer(self._radar_truth)
+        tree_root = runner.tree.root
+        self._takeoff = next(iter(_nodes_named(tree_root, ("ArmAndTakeoff",))), None)
+        self._follow = next(iter(_nodes_named(tree_root, FOLLOW_LEAVES)), None)
+        self._takeoff_alt: float | None = None
+        self._last_frame_index: int | None = None
+        self._last_est_t: float | None = None
+        self._acquired = False
+        self._last_match_t: float | None = None
+        self._last_phase = self._last_mode = None
+        self._validated_seen = self._alt_seen = False
+        self._next_belief_t = -math.inf
+        self._last_belief_t: float | None = None
+
+    def _radar_truth(self, datagram: bytes) -> None:
+        truth = self.sim.radar_truth
+        if truth is not None:
+            self._labels.update(truth.labels)
+
+    # -- per tick --------------------------------------------------------------------------------
+
+    def target_enu(self) -> np.ndarray | None:
+        if self._intruder is not None:
+            return self._intruder.pos.copy()
+        if self._scripted is not None and self._scripted.present(self.sim.time_s):
+            return np.asarray(self._scripted.path.position_enu(self.sim.time_s), float)
+        return None
+
+    def _takeoff_altitude(self) -> float | None:
+        if self._takeoff_alt is None and self._takeoff is not None:
+            alt, tol = _port(self._takeoff, "altitude_m"), _port(self._takeoff, "tolerance_m")
+            if alt is not None:
+                self._takeoff_alt = float(alt) - float(tol or 0.0)
+        return self._takeoff_alt
+
+    def after_tick(self, t: float) -> None:
+        """Record the tick that just ran at mission time ``t``."""
+        sim, truth = self.sim, self.sim.truth
+        ap = sim.autopilot
+        mode = ap.mode
+        phase = _blackboard(PHASE_KEY)
+        phase = phase if isinstance(phase, str) else ""
+        tip_node = self.runner.tree.root.tip()
+        tip_name = type(tip_node).__name__ if tip_node is not None else ""
+        airborne = not truth.on_ground
+        autonomous = bool(ap.armed and airborne and mode in AUTONOMOUS_MODES and not phase.startswith("safety"))
+        following = phase == FOLLOW_PHASE or tip_name in FOLLOW_LEAVES
+        rec = TickRecord(t, autonomous=autonomous, airborne=airborne, following=following)
+        rec.validated = _blackboard(VALIDATED_TRACK_KEY) is not None
+        alt = self._takeoff_altitude()
+        rec.alt_reached = alt is not None and math.isfinite(self.link.state.alt_rel_m) and self.link.state.alt_rel_m >= alt
+        own, att = np.asarray(truth.pos_enu, float), truth.attitude
+        target = self.target_enu()
+        cam_pos = self.camera.position_enu(own, att)
+        if target is not None:
+            rec.in_fov = in_frustum(self.camera, target, own, att)
+            est = _blackboard(ESTIMATE_KEY)
+            if est is not None and est.t != self._last_est_t:
+                self._last_est_t = est.t
+                rec.acquired = estimate_matches(est.position_enu, getattr(est, "bearing_enu", None), cam_pos, target)
+        self._camera_frame(rec)
+        self._radar_state(rec, own, airborne)
+        self.records.append(rec)
+        self._note_events(rec, mode, phase)
+        self._belief(t)
+        if self._cols is not None:
+            self._trace_row(rec, own, truth, target, mode, phase)
+
+    def _camera_frame(self, rec: TickRecord) -> None:
+        cam = self.sensors.camera
+        frame = cam.last_frame if cam is not None else None
+        if frame is None or frame.index == self._last_frame_index:
+            return
+        self._last_frame_index = frame.index
+        rec.frame = True
+        track = cam.pipeline.track
+        truth_boxes = [lab.box for lab in self.sensors.frame_source.last_labels if lab.index == 0] if self.has_target else []
+        rec.frame_matched = bool(track is not None and truth_boxes and box_matches(track.box, truth_boxes[0]))
+
+    def _radar_state(self, rec: TickRecord, own: np.ndarray, airborne: bool) -> None:
+        radar = self.sim.radar
+        if radar is None or self._recorder is None:
+            return
+        rec.radar_counted = bool(airborne and radar.is_on(self.sim.time_s) and radar.in_coverage(own))
+        r = self._recorder
+        if r.last_t is not None and rec.t - r.last_t <= 1.0 and r.last_id is not None:
+            rec.radar_state = 1 if self._labels.get(r.last_id) == "ownship" else -1
+
+    def _note_events(self, rec: TickRecord, mode: str, phase: str) -> None:
+        t = rec.t
+        if rec.validated and not self._validated_seen:
+            self._validated_seen = True
+            self.events.append(TraceEvent(t, "radar_validated", str(_blackboard(VALIDATED_TRACK_KEY))))
+        if self._validated_seen and rec.alt_reached and not self._alt_seen:
+            self._alt_seen = True
+            self.events.append(TraceEvent(t, "airborne", f"{self.link.state.alt_rel_m:.1f} m"))
+        if rec.acquired:
+            self._last_match_t = t
+            if not self._acquired:
+                self._acquired = True
+                self.events.append(TraceEvent(t, "acquired"))
+        elif self._acquired and self._last_match_t is not None and t - self._last_match_t > LOST_AFTER_S:
+            self._acquired = False
+            self.events.append(TraceEvent(t, "lost", f"no matching estimate for {LOST_AFTER_S:.0f} s"))
+        if phase != self._last_phase:
+            if phase:
+                self.events.append(TraceEvent(t, "phase", phase))
+            self._last_phase = phase
+        if mode != self._last_mode:
+            self.events.append(TraceEvent(t, "mode", mode))
+            self._last_mode = mode
+
+    def _belief(self, t: float) -> None:
+        snap = _blackboard(BELIEF_KEY)
+        belief = getattr(snap, "belief", None)
+        if belief is None or t < self._next_belief_t or snap.t == self._last_belief_t:
+            return
+        self._next_belief_t, self._last_belief_t = t + BELIEF_EVERY_S, snap.t
+        self.beliefs.append(belief_snapshot(float(snap.t), belief))
+
+    def _trace_row(self, rec: TickRecord, own: np.ndarray, truth: Any, target: np.ndarray | None, mode: str,
+                   phase: str) -> None:
+        c = self._cols
+        c.t.append(rec.t)
+        c.own.append(own)
+        c.yaw.append(heading_to_enu_yaw(truth.euler_ned[2]))
+        c.target.append(target if target is not None else np.full(3, np.nan))
+        c.in_fov.append(float(rec.in_fov) if rec.autonomous and rec.in_fov is not None else math.nan)
+        c.detected.append(float(rec.frame_matched) if rec.autonomous and rec.frame else math.nan)
+        c.mode.append(mode)
+        c.phase.append(phase)
+        c.tip.append(self.runner.tip_message())
+
+    # -- at the end --------------------------------------------------------------------------------
+
+    def scores(self) -> Scores:
+        return score_ticks(self.records, has_target=self.has_target, has_camera=self.has_camera,
+                           has_radar=self.has_radar)
+
+    def following(self) -> bool:
+        """Whether the mission was following at its last tick."""
+        return bool(self.records) and self.records[-1].following
+
+    def trace(self, meta: dict) -> FlightTrace | None:
+        """The flight trace (None unless asked for); ownship pose and target are the simulator's truth."""
+        c = self._cols
+        if c is None:
+            return None
+        rng = _port(self._follow, "slant_range_m") if self._follow is not None else None
+        elev = _port(self._follow, "elevation_deg") if self._follow is not None else None
+        return FlightTrace(
+            t=np.array(c.t, float), ownship_enu=np.array(c.own, float).reshape(-1, 3),
+            ownship_yaw_rad=np.array(c.yaw, float), target_enu=np.array(c.target, float).reshape(-1, 3),
+            in_fov=np.array(c.in_fov, float), detected=np.array(c.detected, float), mode=c.mode, phase=c.phase,
+            tip=c.tip, events=list(self.events), beliefs=list(self.beliefs), target_source="truth",
+            desired_range_m=float(rng) if rng is not None else math.nan,
+            desired_elevation_rad=math.radians(float(elev)) if elev is not None else math.nan,
+            meta={**meta, "ownship_source": "truth"},
+        )

@@ -1,0 +1,695 @@
+"""ArduCopter flight modes of the simulated autopilot, and the controllers they share.
+
+Each mode turns pilot sticks, GCS targets or its own plan into goals for one
+:class:`PositionController`, ArduPilot's AC_PosControl in miniature: a kinematic target
+(position and velocity, shaped by ArduPilot's ``sqrt_controller`` and slew-limited by the
+mode's speed and acceleration limits) tracked by a cascade position P -> velocity PI ->
+acceleration -> lean angles and thrust. Gains follow ArduCopter's defaults where the structure
+matches (PSC_POSXY_P 1, PSC_VELXY_P 2 / I 1, PSC_POSZ_P 1); the vertical velocity PI (4 / 2)
+stands in for PSC_VELZ_P with the PSC_ACCZ loop folded in. A position step settles in a few
+seconds without overshoot on the default airframe.
+
+Modes and behaviour follow ArduCopter 4.5/4.6 (ardupilot.org/copter/docs/flight-modes.html):
+STABILIZE 0, ALT_HOLD 2, GUIDED 4, LOITER 5, RTL 6, LAND 9, BRAKE 17. Angles are MAVLink's
+(NED/FRD, yaw = heading); positions and velocities are ENU.
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+from typing import Protocol
+
+from sitl.vehicle.airframe import GRAVITY, AirframeParams
+from sitl.vehicle.physics import MulticopterPhysics
+
+__all__ = [
+    "sqrt_controller", "norm_input_dz", "pilot_climb_rate", "PositionController",
+    "FlightMode", "Stabilize", "AltHold", "Guided", "Loiter", "Rtl", "Land", "Brake",
+    "GuidedSubmode", "RtlState", "make_modes", "ModeHost",
+]
+
+# tracking gains (ArduCopter defaults, see module docstring)
+POS_XY_P = 1.0
+VEL_XY_P = 2.0
+VEL_XY_I = 1.0
+VEL_XY_IMAX = 2.0  # m/s^2
+POS_Z_P = 1.0
+VEL_Z_P = 4.0
+VEL_Z_I = 2.0
+VEL_Z_IMAX = 4.0  # m/s^2
+SHAPE_P = 1.5  # target shaping: final-approach bandwidth, 1/s
+YAW_P = 3.0
+AUTO_YAW_RATE_MAX = math.radians(90.0)
+BRAKE_ACCEL = 7.5  # ArduCopter BRAKE_MODE_DECEL_RATE, m/s^2
+LAND_DETECT_S = 1.0  # ArduCopter LAND_DETECTOR_TRIGGER_SEC
+FACE_TARGET_MIN_DIST = 2.0  # closer targets keep the heading (WP_YAW_BEHAVIOR 2)
+REACHED_TOL = 0.1  # m: the shaped target counts as arrived this close to its goal
+
+
+def sqrt_controller(error: float, p: float, accel_max: float) -> float:
+    """ArduPilot's sqrt_controller: linear ``p * error`` near zero, ``sqrt(2 a e)`` beyond.
+
+    The velocity it returns lets the target stop on ``error = 0`` decelerating at ``accel_max``.
+    """
+    if accel_max <= 0.0:
+        return p * error
+    linear = accel_max / (p * p)
+    if error > linear:
+        return math.sqrt(2.0 * accel_max * (error - 0.5 * linear))
+    if error < -linear:
+        return -math.sqrt(2.0 * accel_max * (-error - 0.5 * linear))
+    return p * error
+
+
+def norm_input_dz(pwm: float, dz: float) -> float:
+    """A stick's PWM as -1..1 outside its deadzone (ArduPilot RC_Channel::norm_input_dz).
+
+    Range 1000..2000, trim 1500: 1300 with a 20 us deadzone is (1300 - 1480) / 480 = -0.375.
+    """
+    lo = 1500.0 - dz
+    hi = 1500.0 + dz
+    if pwm < lo:
+        return max(-1.0, (pwm - lo) / (lo - 1000.0))
+    if pwm > hi:
+        return min(1.0, (pwm - hi) / (2000.0 - hi))
+    return 0.0
+
+
+def pilot_climb_rate(pwm: float, thr_dz: float, up: float, dn: float) -> float:
+    """Climb rate (m/s) from the throttle stick (ArduCopter get_pilot_desired_climb_rate).
+
+    Mid-stick +- THR_DZ (in 0..1000 stick units) holds altitude; above it climbs up to ``up``,
+    below it descends up to ``dn``.
+    """
+    thr = min(max(pwm - 1000.0, 0.0), 1000.0)
+    top = 500.0 + thr_dz
+    bottom = 500.0 - thr_dz
+    if thr < bottom:
+        return dn * (thr - bottom) / bottom
+    if thr > top:
+        return up * (thr - top) / (1000.0 - top)
+    return 0.0
+
+
+class PositionController:
+    """Shaped position/velocity targets tracked by a P -> PI cascade (AC_PosControl-like).
+
+    Horizontal and vertical axes are shaped independently. Goals: a position (``set_pos_xy``,
+    ``set_alt``) approached at up to the given speed and acceleration and then held, or a
+    velocity (``set_vel_xy``, ``set_climb``) reached at the given acceleration, whose target
+    position keeps integrating so a zero velocity holds where it stopped. Yaw: a heading
+    target, slewed by a rate feed-forward.
+    """
+
+    def __init__(self, mass_kg: float, max_thrust_n: float) -> None:
+        self.mass = mass_kg
+        self.max_thrust = max_thrust_n
+        self.tpx = self.tpy = self.tvx = self.tvy = 0.0
+        self.gx = self.gy = 0.0
+        self.xy_pos_goal = False
+        self.speed_xy = 1.0
+        self.accel_xy = 1.0
+        self.ix = self.iy = 0.0
+        self.tpz = self.tvz = 0.0
+        self.gz = 0.0
+        self.z_pos_goal = False
+        self.speed_up = self.speed_dn = 1.0
+        self.accel_z = 1.0
+        self.iz = 0.0
+        self.yaw_target = 0.0
+        self.yaw_rate_ff = 0.0
+
+    # --- goals ---
+    def reset(self, px: float, py: float, pz: float, vx: float, vy: float, vz: float,
+              yaw: float) -> None:
+        """Targets at the present state, integrators cleared, holding velocity then stopping."""
+        self.tpx, self.tpy, self.tpz = px, py, pz
+        self.tvx, self.tvy, self.tvz = vx, vy, vz
+        self.ix = self.iy = self.iz = 0.0
+        self.xy_pos_goal = self.z_pos_goal = False
+        self.gx = self.gy = self.gz = 0.0
+        self.yaw_target = yaw
+        self.yaw_rate_ff = 0.0
+
+    def set_pos_xy(self, x: float, y: float, speed: float, accel: float) -> None:
+        """Fly to (x, y) at up to ``speed`` m/s, ``accel`` m/s^2, and hold it."""
+        self.xy_pos_goal = True
+        self.gx, self.gy = x, y
+        self.speed_xy, self.accel_xy = speed, accel
+
+    def set_vel_xy(self, vx: float, vy: float, accel: float) -> None:
+        """Fly at (vx, vy), reached at ``accel`` m/s^2."""
+        self.xy_pos_goal = False
+        self.gx, self.gy = vx, vy
+        self.accel_xy = accel
+
+    def set_alt(self, z: float, speed_up: float, speed_dn: float, accel: float) -> None:
+        """Climb or descend to ENU height ``z`` and hold it."""
+        self.z_pos_goal = True
+        self.gz = z
+        self.speed_up, self.speed_dn, self.accel_z = speed_up, speed_dn, accel
+
+    def set_climb(self, vz: float, accel: float) -> None:
+        """Climb at ``vz`` m/s (negative descends), reached at ``accel`` m/s^2."""
+        self.z_pos_goal = False
+        self.gz = vz
+        self.accel_z = accel
+
+    def xy_reached(self) -> bool:
+        """The horizontal target has arrived at its position goal."""
+        return self.xy_pos_goal and math.hypot(self.gx - self.tpx, self.gy - self.tpy) < REACHED_TOL
+
+    def z_reached(self) -> bool:
+        """The vertical target has arrived at its altitude goal."""
+        return self.z_pos_goal and abs(self.gz - self.tpz) < REACHED_TOL
+
+    # --- updates ---
+    def _shape_xy(self, dt: float) -> tuple[float, float]:
+        if self.xy_pos_goal:
+            ex, ey = self.gx - self.tpx, self.gy - self.tpy
+            d = math.sqrt(ex * ex + ey * ey)
+            if d < 1e-3 and self.tvx * self.tvx + self.tvy * self.tvy < 1e-4:
+                self.tpx, self.tpy, self.tvx, self.tvy = self.gx, self.gy, 0.0, 0.0
+                return 0.0, 0.0
+            s = min(sqrt_controller(d, SHAPE_P, self.accel_xy), self.speed_xy) / d if d > 1e-9 else 0.0
+            vgx, vgy = ex * s, ey * s
+        else:
+            vgx, vgy = self.gx, self.gy
+        dvx, dvy = vgx - self.tvx, vgy - self.tvy
+        dv = math.sqrt(dvx * dvx + dvy * dvy)
+        lim = self.accel_xy * dt
+        if dv > lim:
+            dvx, dvy = dvx * lim / dv, dvy * lim / dv
+        self.tvx += dvx
+        self.tvy += dvy
+        self.tpx += self.tvx * dt
+        self.tpy += self.tvy * dt
+        return dvx / dt, dvy / dt
+
+    def update_xy(self, dt: float, px: float, py: float, vx: float, vy: float, yaw: float,
+                  angle_max: float) -> tuple[float, float]:
+        """Advance the horizontal target and return the (roll, pitch) that tracks it."""
+        ffx, ffy = self._shape_xy(dt)
+        evx = self.tvx + POS_XY_P * (self.tpx - px) - vx
+        evy = self.tvy + POS_XY_P * (self.tpy - py) - vy
+        ax = ffx + VEL_XY_P * evx + self.ix
+        ay = ffy + VEL_XY_P * evy + self.iy
+        amax = GRAVITY * math.tan(angle_max)
+        a = math.sqrt(ax * ax + ay * ay)
+        if a > amax:
+            ax, ay = ax * amax / a, ay * amax / a
+        else:
+            self.ix = min(max(self.ix + VEL_XY_I * evx * dt, -VEL_XY_IMAX), VEL_XY_IMAX)
+            self.iy = min(max(self.iy + VEL_XY_I * evy * dt, -VEL_XY_IMAX), VEL_XY_IMAX)
+        return accel_to_lean(ax, ay, yaw)
+
+    def _shape_z(self, dt: float) -> float:
+        if self.z_pos_goal:
+            e = self.gz - self.tpz
+            if abs(e) < 1e-3 and abs(self.tvz) < 1e-2:
+                self.tpz, self.tvz = self.gz, 0.0
+                return 0.0
+            vg = min(max(sqrt_controller(e, SHAPE_P, self.accel_z), -self.speed_dn), self.speed_up)
+        else:
+            vg = self.gz
+        dv = min(max(vg - self.tvz, -self.accel_z * dt), self.accel_z * dt)
+        self.tvz += dv
+        self.tpz += self.tvz * dt
+        return dv / dt
+
+    def update_z(self, dt: float, pz: float, vz: float, roll: float, pitch: float) -> float:
+        """Advance the vertical target and return the thrust (N) that tracks it."""
+        ff = self._shape_z(dt)
+        ev = self.tvz + POS_Z_P * (self.tpz - pz) - vz
+        az = ff + VEL_Z_P * ev + self.iz
+        thrust = self.mass * (GRAVITY + az) / max(math.cos(roll) * math.cos(pitch), 0.5)
+        if 0.0 < thrust < self.max_thrust:
+            self.iz = min(max(self.iz + VEL_Z_I * ev * dt, -VEL_Z_IMAX), VEL_Z_IMAX)
+        return min(max(thrust, 0.0), self.max_thrust)
+
+    def update_yaw(self, dt: float, yaw: float, rate_max: float) -> float:
+        """Advance the heading target by its rate feed-forward; return the yaw-rate command."""
+        if self.yaw_rate_ff:
+            self.yaw_target = wrap_pi(self.yaw_target + self.yaw_rate_ff * dt)
+        r = self.yaw_rate_ff + YAW_P * wrap_pi(self.yaw_target - yaw)
+        return min(max(r, -rate_max), rate_max)
+
+
+def wrap_pi(a: float) -> float:
+    """Angle wrapped to [-pi, pi)."""
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def accel_to_lean(ax: float, ay: float, yaw: float) -> tuple[float, float]:
+    """ENU horizontal acceleration -> (roll, pitch) at heading ``yaw`` (ArduPilot accel_to_lean_angles)."""
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    forward = ay * cy + ax * sy  # north, east components onto the nose
+    right = -ay * sy + ax * cy
+    pitch = math.atan(-forward / GRAVITY)
+    roll = math.atan(right * math.cos(pitch) / GRAVITY)
+    return roll, pitch
+
+
+def heading_to(dx: float, dy: float) -> float:
+    """Compass heading (NED yaw) of the ENU direction (dx, dy)."""
+    return math.atan2(dx, dy)
+
+
+class ModeHost(Protocol):
+    """What a flight mode reads and drives on its autopilot (:class:`sitl.vehicle.autopilot.Autopilot`).
+
+    Written out here so the modes depend on this interface, not on the autopilot module that owns them.
+    """
+
+    airframe: AirframeParams
+    phys: MulticopterPhysics
+    pc: PositionController
+    p: dict[str, float]
+    time_s: float
+    ex: float
+    ey: float
+    ez: float
+    evz: float
+    home_enu: tuple[float, float, float] | None
+    ekf_ok: bool
+    land_complete: bool
+
+    @property
+    def angle_max(self) -> float: ...
+
+    def alt_rel(self) -> float: ...
+
+    def rc(self, ch: int) -> int: ...
+
+    def idle(self) -> None: ...
+
+    def reset_controller(self) -> None: ...
+
+    def output(self, roll: float, pitch: float, yaw_rate: float, thrust: float) -> None: ...
+
+    def output_tracking(self, dt: float, roll: float | None = None, pitch: float | None = None) -> None: ...
+
+
+class FlightMode(abc.ABC):
+    """One ArduCopter flight mode: entry checks, and a run() called every control step."""
+
+    number = -1
+    name = ""
+    requires_position = False
+    allows_arming = False
+    manual_throttle = False
+
+    def enter(self, ap: ModeHost) -> str | None:
+        """Initialise on entry; return a failure reason to refuse the change."""
+        ap.reset_controller()
+        return None
+
+    @abc.abstractmethod
+    def run(self, ap: ModeHost, dt: float) -> None:
+        """Compute this step's commands into ``ap.phys``."""
+
+    def landing(self) -> bool:
+        """The mode is descending to land (MAV_LANDED_STATE_LANDING)."""
+        return False
+
+    def taking_off(self) -> bool:
+        """The mode is climbing out (MAV_LANDED_STATE_TAKEOFF)."""
+        return False
+
+
+def _stick_lean(ap: ModeHost, angle_max: float) -> tuple[float, float]:
+    """Roll and pitch from sticks 1 and 2, limited to ``angle_max`` as a circle (ArduCopter)."""
+    p = ap.p
+    roll = norm_input_dz(ap.rc(1), p["RC1_DZ"]) * angle_max
+    pitch = norm_input_dz(ap.rc(2), p["RC2_DZ"]) * angle_max
+    total = math.sqrt(roll * roll + pitch * pitch)
+    if total > angle_max:
+        roll, pitch = roll * angle_max / total, pitch * angle_max / total
+    return roll, pitch
+
+
+def _stick_yaw_rate(ap: ModeHost) -> float:
+    return norm_input_dz(ap.rc(4), ap.p["RC4_DZ"]) * math.radians(ap.p["PILOT_Y_RATE"])
+
+
+def _stick_climb(ap: ModeHost) -> float:
+    p = ap.p
+    up = p["PILOT_SPEED_UP"] * 0.01
+    dn = (p["PILOT_SPEED_DN"] or p["PILOT_SPEED_UP"]) * 0.01
+    return pilot_climb_rate(ap.rc(3), p["THR_DZ"], up, dn)
+
+
+class Stabilize(FlightMode):
+    """Sticks -> lean angles and yaw rate; throttle stick -> thrust, mid-stick = hover."""
+
+    number, name, allows_arming, manual_throttle = 0, "STABILIZE", True, True
+
+    def run(self, ap: ModeHost, dt: float) -> None:
+        p = ap.p
+        dz = p["RC3_DZ"]
+        stick = min(max((ap.rc(3) - 1000.0 - dz) / (1000.0 - dz), 0.0), 1.0)
+        if stick <= 0.0 and ap.land_complete:
+            ap.idle()
+            return
+        hover = ap.airframe.hover_throttle
+        throttle = stick / 0.5 * hover if stick < 0.5 else hover + (stick - 0.5) / 0.5 * (1.0 - hover)
+        roll, pitch = _stick_lean(ap, ap.angle_max)
+        ph = ap.phys
+        boost = max(math.cos(ph.roll) * math.cos(ph.pitch), 0.5)
+        ap.output(roll, pitch, _stick_yaw_rate(ap), throttle * ap.airframe.max_thrust_n / boost)
+
+
+class AltHold(FlightMode):
+    """Sticks -> lean angles and yaw rate; throttle stick -> climb rate, mid-stick holds altitude."""
+
+    number, name, allows_arming = 2, "ALT_HOLD", True
+
+    def run(self, ap: ModeHost, dt: float) -> None:
+        climb = _stick_climb(ap)
+        if ap.land_complete and climb <= 0.0:
+            ap.idle()
+            return
+        pc = ap.pc
+        pc.set_climb(climb, ap.p["PILOT_ACCEL_Z"] * 0.01)
+        roll, pitch = _stick_lean(ap, ap.angle_max)
+        pc.yaw_rate_ff = _stick_yaw_rate(ap)
+        ap.output_tracking(dt, roll=roll, pitch=pitch)
+
+
+class Loiter(FlightMode):
+    """Holds position; sticks fly it (velocity up to LOIT_SPEED), throttle as in ALT_HOLD."""
+
+    number, name, requires_position, allows_arming = 5, "LOITER", True, True
+
+    def run(self, ap: ModeHost, dt: float) -> None:
+        p = ap.p
+        climb = _stick_climb(ap)
+        if ap.land_complete and climb <= 0.0:
+            ap.idle()
+            return
+        right = norm_input_dz(ap.rc(1), p["RC1_DZ"])
+        forward = -norm_input_dz(ap.rc(2), p["RC2_DZ"])
+        speed = p["LOIT_SPEED"] * 0.01
+        yaw = ap.phys.yaw
+        cy, sy = math.cos(yaw), math.sin(yaw)
+        # body forward/right -> ENU east/north
+        ve = (forward * sy + right * cy) * speed
+        vn = (forward * cy - right * sy) * speed
+        sticks = forward != 0.0 or right != 0.0
+        accel = p["LOIT_ACC_MAX"] * 0.01 if sticks else p["LOIT_BRK_ACCEL"] * 0.01
+        pc = ap.pc
+        pc.set_vel_xy(ve, vn, accel)
+        pc.set_climb(climb, p["PILOT_ACCEL_Z"] * 0.01)
+        pc.yaw_rate_ff = _stick_yaw_rate(ap)
+        ap.output_tracking(dt)
+
+
+class Brake(FlightMode):
+    """Stops as hard as the lean limit allows and holds position (ArduCopter BRAKE)."""
+
+    number, name, requires_position = 17, "BRAKE", True
+
+    def enter(self, ap: ModeHost) -> str | None:
+        super().enter(ap)
+        accel = min(BRAKE_ACCEL, 0.8 * GRAVITY * math.tan(ap.angle_max))
+        ap.pc.set_vel_xy(0.0, 0.0, accel)
+        ap.pc.set_climb(0.0, ap.p["WPNAV_ACCEL_Z"] * 0.01)
+        return None
+
+    def run(self, ap: ModeHost, dt: float) -> None:
+        if ap.land_complete:
+            ap.idle()
+            return
+        ap.output_tracking(dt)
+
+
+class GuidedSubmode:
+    """What GUIDED is doing: waiting on the ground, taking off, or following one kind of target."""
+
+    IDLE = "idle"
+    TAKEOFF = "takeoff"
+    POS = "pos"
+    VEL = "vel"
+    ATT = "att"
+
+
+class Guided(FlightMode):
+    """GCS-driven flight: takeoff, position, velocity and attitude targets (ArduCopter GUIDED).
+
+    A position target holds until replaced; velocity and attitude targets time out after
+    GUID_TIMEOUT (then stop and hold / level and hold altitude), as ArduCopter does.
+    """
+
+    number, name, requires_position, allows_arming = 4, "GUIDED", True, True
+
+    def __init__(self) -> None:
+        self.sub = GuidedSubmode.IDLE
+        self.last_cmd_t = 0.0
+        self.att = (0.0, 0.0, 0.0)  # roll, pitch, yaw target
+        self.att_yaw_rate: float | None = None
+        self.att_thrust = 0.5
+        self.speed_override: float | None = None
+
+    def enter(self, ap: ModeHost) -> str | None:
+        super().enter(ap)
+        self.speed_override = None
+        self.att_yaw_rate = None
+        if ap.land_complete:
+            self.sub = GuidedSubmode.IDLE
+        else:
+            self.sub = GuidedSubmode.VEL
+            self._stop(ap)
+        return None
+
+    def _stop(self, ap: ModeHost) -> None:
+        """Brake to a hold at WPNAV_ACCEL (the velocity-timeout and entry behaviour)."""
+        pc = ap.pc
+        pc.set_vel_xy(0.0, 0.0, ap.p["WPNAV_ACCEL"] * 0.01)
+        pc.set_climb(0.0, ap.p["WPNAV_ACCEL_Z"] * 0.01)
+        pc.yaw_rate_ff = 0.0
+
+    def speed_xy(self, ap: ModeHost) -> float:
+        return self.speed_override if self.speed_override is not None else ap.p["WPNAV_SPEED"] * 0.01
+
+    def takeoff(self, ap: ModeHost, z: float) -> None:
+        ap.reset_controller()
+        p = ap.p
+        self.sub = GuidedSubmode.TAKEOFF
+        ap.pc.set_pos_xy(ap.ex, ap.ey, self.speed_xy(ap), p["WPNAV_ACCEL"] * 0.01)
+        ap.pc.set_alt(z, p["WPNAV_SPEED_UP"] * 0.01, p["WPNAV_SPEED_DN"] * 0.01, p["WPNAV_ACCEL_Z"] * 0.01)
+
+    def set_position(self, ap: ModeHost, x: float, y: float, z: float, yaw: float | None) -> None:
+        if self.sub == GuidedSubmode.IDLE:
+            return  # on the ground GUIDED needs a takeoff command first, as ArduCopter
+        if self.sub == GuidedSubmode.ATT:
+            ap.reset_controller()
+        self.sub = GuidedSubmode.POS
+        p = ap.p
+        pc = ap.pc
+        pc.set_pos_xy(x, y, self.speed_xy(ap), p["WPNAV_ACCEL"] * 0.01)
+        pc.set_alt(z, p["WPNAV_SPEED_UP"] * 0.01, p["WPNAV_SPEED_DN"] * 0.01, p["WPNAV_ACCEL_Z"] * 0.01)
+        pc.yaw_rate_ff = 0.0
+        if yaw is not None:
+            pc.yaw_target = yaw
+        elif math.hypot(x - ap.ex, y - ap.ey) > FACE_TARGET_MIN_DIST:
+            pc.yaw_target = heading_to(x - ap.ex, y - ap.ey)
+
+    def set_velocity(self, ap: ModeHost, vx: float, vy: float, vz: float,
+                     yaw: float | None, yaw_rate: float | None) -> None:
+        if self.sub == GuidedSubmode.IDLE:
+            return
+        if self.sub == GuidedSubmode.ATT:
+            ap.reset_controller()
+        self.sub = GuidedSubmode.VEL
+        self.last_cmd_t = ap.time_s
+        pc = ap.pc
+        pc.set_vel_xy(vx, vy, ap.p["WPNAV_ACCEL"] * 0.01)
+        pc.set_climb(vz, ap.p["WPNAV_ACCEL_Z"] * 0.01)
+        pc.yaw_rate_ff = 0.0
+        if yaw is not None:
+            pc.yaw_target = yaw
+        elif yaw_rate is not None:
+            pc.yaw_rate_ff = yaw_rate
+
+    def set_attitude(self, ap: ModeHost, roll: float, pitch: float, yaw: float,
+                     yaw_rate: float | None, thrust: float) -> None:
+        if self.sub == GuidedSubmode.IDLE:
+            return
+        if self.sub != GuidedSubmode.ATT:
+            ap.reset_controller()
+        self.sub = GuidedSubmode.ATT
+        self.last_cmd_t = ap.time_s
+        self.att = (roll, pitch, yaw)
+        self.att_yaw_rate = yaw_rate
+        self.att_thrust = thrust
+
+    def run(self, ap: ModeHost, dt: float) -> None:
+        if self.sub == GuidedSubmode.IDLE or (ap.land_complete and self.sub != GuidedSubmode.TAKEOFF):
+            ap.idle()
+            return
+        p = ap.p
+        timed_out = ap.time_s - self.last_cmd_t > p["GUID_TIMEOUT"]
+        if self.sub == GuidedSubmode.TAKEOFF:
+            if ap.pc.z_reached():
+                self.sub = GuidedSubmode.POS
+            ap.output_tracking(dt)
+        elif self.sub == GuidedSubmode.VEL:
+            if timed_out:
+                self._stop(ap)
+            ap.output_tracking(dt)
+        elif self.sub == GuidedSubmode.ATT:
+            self._run_attitude(ap, dt, timed_out)
+        else:
+            ap.output_tracking(dt)
+
+    def _run_attitude(self, ap: ModeHost, dt: float, timed_out: bool) -> None:
+        p = ap.p
+        pc = ap.pc
+        if timed_out:
+            roll = pitch = 0.0
+            pc.yaw_rate_ff = 0.0
+            climb = 0.0
+        else:
+            amax = ap.angle_max
+            roll = min(max(self.att[0], -amax), amax)
+            pitch = min(max(self.att[1], -amax), amax)
+            if self.att_yaw_rate is not None:
+                pc.yaw_rate_ff = self.att_yaw_rate
+            else:
+                pc.yaw_rate_ff = 0.0
+                pc.yaw_target = self.att[2]
+            if int(p["GUID_OPTIONS"]) & 8:  # thrust is thrust: no altitude control
+                thrust = min(max(self.att_thrust, 0.0), 1.0) * ap.airframe.max_thrust_n
+                yaw_rate = pc.update_yaw(dt, ap.phys.yaw, AUTO_YAW_RATE_MAX + abs(pc.yaw_rate_ff))
+                ap.output(roll, pitch, yaw_rate, thrust)
+                pc.tpz, pc.tvz = ap.ez, ap.evz  # bumpless hand-back to climb-rate control
+                return
+            t = min(max(self.att_thrust, 0.0), 1.0)
+            scale = p["WPNAV_SPEED_UP"] if t >= 0.5 else p["WPNAV_SPEED_DN"]
+            climb = (t - 0.5) * 2.0 * scale * 0.01
+        pc.set_climb(climb, p["WPNAV_ACCEL_Z"] * 0.01)
+        ap.output_tracking(dt, roll=roll, pitch=pitch)
+
+    def taking_off(self) -> bool:
+        return self.sub == GuidedSubmode.TAKEOFF
+
+
+def land_descent_rate(ap: ModeHost) -> float:
+    """ArduCopter's landing descent rate: fast above LAND_ALT_LOW, LAND_SPEED below (m/s, > 0)."""
+    p = ap.p
+    if ap.alt_rel() > p["LAND_ALT_LOW"] * 0.01:
+        return (p["LAND_SPEED_HIGH"] or p["WPNAV_SPEED_DN"]) * 0.01
+    return p["LAND_SPEED"] * 0.01
+
+
+def run_landing(ap: ModeHost, dt: float, hold_position: bool) -> None:
+    """Descend at the landing rate, holding the horizontal target (or level without position)."""
+    pc = ap.pc
+    pc.set_climb(-land_descent_rate(ap), ap.p["WPNAV_ACCEL_Z"] * 0.01)
+    if hold_position and ap.ekf_ok:
+        ap.output_tracking(dt)
+    else:
+        ap.output_tracking(dt, roll=0.0, pitch=0.0)
+
+
+class Land(FlightMode):
+    """Descends (LAND_SPEED_HIGH / WPNAV_SPEED_DN, then LAND_SPEED below LAND_ALT_LOW) and disarms."""
+
+    number, name = 9, "LAND"
+
+    def __init__(self) -> None:
+        self.hold_position = True
+
+    def enter(self, ap: ModeHost) -> str | None:
+        super().enter(ap)
+        self.hold_position = ap.ekf_ok
+        ap.pc.set_vel_xy(0.0, 0.0, ap.p["WPNAV_ACCEL"] * 0.01)
+        return None
+
+    def run(self, ap: ModeHost, dt: float) -> None:
+        if ap.land_complete:
+            ap.idle()
+            return
+        run_landing(ap, dt, self.hold_position)
+
+    def landing(self) -> bool:
+        return True
+
+
+class RtlState:
+    """Stages of ArduCopter's RTL."""
+
+    CLIMB = "climb"
+    RETURN = "return"
+    LOITER = "loiter_at_home"
+    FINAL_DESCENT = "final_descent"
+    LAND = "land"
+
+
+class Rtl(FlightMode):
+    """Return to launch: climb to RTL_ALT (or keep a higher altitude), fly home at RTL_SPEED,
+    hover RTL_LOIT_TIME, then land and disarm (or descend to RTL_ALT_FINAL and hover)."""
+
+    number, name, requires_position = 6, "RTL", True
+
+    def __init__(self) -> None:
+        self.state = RtlState.CLIMB
+        self.return_z = 0.0
+        self.loiter_start = 0.0
+
+    def enter(self, ap: ModeHost) -> str | None:
+        if ap.home_enu is None:
+            return "requires position"
+        super().enter(ap)
+        p = ap.p
+        alt = ap.alt_rel()
+        rtl_alt = p["RTL_ALT"] * 0.01 if p["RTL_ALT"] > 0 else alt  # RTL_ALT 0: return at current altitude
+        # never descend to return: a vehicle above RTL_ALT keeps its altitude
+        self.return_z = ap.home_enu[2] + max(rtl_alt, alt + p["RTL_CLIMB_MIN"] * 0.01)
+        if ap.land_complete:
+            self.state = RtlState.LAND
+            return None
+        self.state = RtlState.CLIMB
+        ap.pc.set_vel_xy(0.0, 0.0, p["WPNAV_ACCEL"] * 0.01)
+        ap.pc.set_alt(self.return_z, p["WPNAV_SPEED_UP"] * 0.01, p["WPNAV_SPEED_DN"] * 0.01,
+                      p["WPNAV_ACCEL_Z"] * 0.01)
+        return None
+
+    def speed_xy(self, ap: ModeHost) -> float:
+        return (ap.p["RTL_SPEED"] or ap.p["WPNAV_SPEED"]) * 0.01
+
+    def run(self, ap: ModeHost, dt: float) -> None:
+        if ap.land_complete:
+            ap.idle()
+            return
+        p = ap.p
+        pc = ap.pc
+        hx, hy, hz = ap.home_enu
+        if self.state == RtlState.CLIMB and pc.z_reached():
+            self.state = RtlState.RETURN
+            pc.set_pos_xy(hx, hy, self.speed_xy(ap), p["WPNAV_ACCEL"] * 0.01)
+        elif self.state == RtlState.RETURN and pc.xy_reached():
+            self.state = RtlState.LOITER
+            self.loiter_start = ap.time_s
+        elif self.state == RtlState.LOITER and ap.time_s - self.loiter_start >= p["RTL_LOIT_TIME"] * 0.001:
+            final = p["RTL_ALT_FINAL"] * 0.01
+            if final > 0.0:
+                self.state = RtlState.FINAL_DESCENT
+                pc.set_alt(hz + final, p["WPNAV_SPEED_UP"] * 0.01, p["WPNAV_SPEED_DN"] * 0.01,
+                           p["WPNAV_ACCEL_Z"] * 0.01)
+            else:
+                self.state = RtlState.LAND
+        if self.state == RtlState.LAND:
+            run_landing(ap, dt, hold_position=True)
+        else:
+            ap.output_tracking(dt)
+
+    def landing(self) -> bool:
+        return self.state == RtlState.LAND
+
+
+def make_modes() -> dict[int, FlightMode]:
+    """One instance of each supported mode, by ArduCopter mode number."""
+    modes: list[FlightMode] = [Stabilize(), AltHold(), Guided(), Loiter(), Rtl(), Land(), Brake()]
+    return {m.number: m for m in modes}

@@ -1,0 +1,88 @@
+"""The simulator's camera as a :class:`chaser_bt.vision.frame_source.FrameSource`.
+
+Frames are rendered from ground truth (the chaser's true pose, the targets' true poses): that is
+the sensor, not a leak, and the mission only ever sees the pixels. Motion blur follows the
+ownship's rotation between frames (``exposure_s`` of it smears the image).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from chaser_bt.vision.camera import CameraModel
+from chaser_bt.vision.frame_source import Frame
+from sitl.world.camera.renderer import (
+    Lighting,
+    Renderer,
+    TargetPose,
+    attitude_from_velocity,
+)
+from sitl.world.camera.scene import GroundScene, make_ground
+
+__all__ = ["SimTarget", "SimulatorFrameSource"]
+
+
+@dataclass(frozen=True)
+class SimTarget:
+    """A target the camera can see: its kind and a path with ``position_enu(t)`` and ``velocity_enu(t)``
+    (a ``sitl.world.targets`` path or an intruder); attitude from ``path.attitude(t)`` if it has one, else
+    from its velocity; ``variant`` picks the colour scheme of kinds that have several (a person's clothes)."""
+
+    kind: str
+    path: Any
+    variant: int = 0
+
+    def pose(self, t: float) -> TargetPose:
+        att = self.path.attitude(t) if hasattr(self.path, "attitude") else attitude_from_velocity(self.path.velocity_enu(t))
+        return TargetPose(self.kind, np.asarray(self.path.position_enu(t), float), att, self.variant)
+
+
+class SimulatorFrameSource:
+    """Renders the chaser's camera from a running simulator.
+
+    Args:
+        simulator: a ``sitl.simulator.Simulator`` (reads ``truth`` and ``time_s``).
+        camera_model: the camera (its size is the frame size).
+        targets: what to draw.
+        seed: sensor-noise seed.
+        lighting: scene lighting; ground_seed: the procedural ground's layout.
+        exposure_s: shutter time for motion blur.
+        ground: a ground already made (shared between runs: making one takes a second or two);
+            None makes the one of ``ground_seed``.
+    """
+
+    def __init__(self, simulator: Any, camera_model: CameraModel, targets: Sequence[SimTarget], seed: int,
+                 lighting: Lighting = Lighting(), ground_seed: int = 7, exposure_s: float = 0.01,
+                 ground: GroundScene | None = None) -> None:
+        self.simulator = simulator
+        self.camera = camera_model
+        self.targets = list(targets)
+        self.lighting = lighting
+        self.exposure_s = exposure_s
+        self.renderer = Renderer(camera_model, ground if ground is not None else make_ground(ground_seed), noise_seed=seed)
+        self.rng = np.random.default_rng(seed)
+        self._last: tuple[float, Rotation] | None = None
+        self._index = 0
+        self.last_labels = ()
+
+    def read(self, t: float) -> Frame | None:
+        truth = self.simulator.truth
+        sim_t = float(self.simulator.time_s)
+        att = truth.attitude
+        blur = 0.0
+        if self._last is not None and sim_t > self._last[0]:
+            rate = np.linalg.norm((att * self._last[1].inv()).as_rotvec()) / (sim_t - self._last[0])
+            blur = rate * self.exposure_s * self.camera.focal_px[0]
+        self._last = (sim_t, att)
+        frame = self.renderer.render(truth.pos_enu, att, [tg.pose(sim_t) for tg in self.targets], self.lighting, self.rng, blur_px=blur)
+        self.last_labels = frame.labels  # for scoring only
+        out = Frame(t, frame.image, self._index)
+        self._index += 1
+        return out
+
+    def close(self) -> None:
+        """Nothing to release: frames are rendered on demand."""

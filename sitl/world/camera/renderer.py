@@ -1,0 +1,295 @@
+"""Render what the chaser's camera sees, from ground truth (paper section 3.1; the camera is the sensor).
+
+A frame is: sky (a gradient over ray elevation) above the horizon; the procedural ground
+(:mod:`sitl.world.camera.scene`) mapped by the ground-plane homography ``K R^T [e1 e2 -C]`` below it,
+fading into haze with distance; the targets drawn to scale and attitude from
+:mod:`sitl.world.camera.models` in painter's order; then the sensor: brightness, motion blur along a
+direction, additive noise and JPEG compression. The camera geometry is
+:class:`chaser_bt.vision.camera.CameraModel` (the one camera model), so labels, projection and
+rendering agree exactly. Each label is the tight box of the drawn primitives.
+
+Randomness comes only from the ``rng`` passed to :meth:`Renderer.render`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import cv2
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from chaser_bt.vision.camera import CameraModel
+from sitl.world.camera.models import TargetModel, model_for
+from sitl.world.camera.scene import GroundScene
+
+__all__ = ["Lighting", "TargetPose", "TargetLabel", "RenderedFrame", "Renderer", "attitude_from_velocity"]
+
+_DISC_SIDES = 12
+_COARSE = 4  # sky and haze grid step (pixels)
+
+
+@dataclass(frozen=True)
+class Lighting:
+    """Scene lighting and sensor settings.
+
+    Args:
+        sun_azimuth_rad, sun_elevation_rad: ENU azimuth (from east, counter-clockwise) and elevation.
+        brightness: overall gain (1 = nominal exposure).
+        haze_m: visibility distance of the ground haze (m).
+        sky_zenith, sky_horizon: BGR sky colours.
+        noise_sigma: additive sensor noise (grey levels, 1-sigma).
+        jpeg_quality: 1..100, or 0 for no compression.
+    """
+
+    sun_azimuth_rad: float = 0.8
+    sun_elevation_rad: float = 0.8
+    brightness: float = 1.0
+    haze_m: float = 900.0
+    sky_zenith: tuple[float, float, float] = (200.0, 140.0, 90.0)
+    sky_horizon: tuple[float, float, float] = (235.0, 215.0, 200.0)
+    noise_sigma: float = 3.0
+    jpeg_quality: int = 85
+
+    def sun_enu(self) -> np.ndarray:
+        ce = math.cos(self.sun_elevation_rad)
+        return np.array([ce * math.cos(self.sun_azimuth_rad), ce * math.sin(self.sun_azimuth_rad), math.sin(self.sun_elevation_rad)])
+
+
+@dataclass(frozen=True)
+class TargetPose:
+    """A target to draw: its kind ("s1000", "phantom", "person"), ENU position (m), body (FLU) -> ENU
+    attitude and colour ``variant`` (:func:`sitl.world.camera.models.model_for`)."""
+
+    kind: str
+    position_enu: np.ndarray
+    attitude: Rotation = field(default_factory=Rotation.identity)
+    variant: int = 0
+
+
+@dataclass(frozen=True)
+class TargetLabel:
+    """Ground truth for one drawn target: ``box`` (x0, y0, x1, y1) pixels, clipped to the image."""
+
+    index: int
+    kind: str
+    box: tuple[float, float, float, float]
+    centre_px: tuple[float, float]
+    range_m: float
+    truncated: bool
+
+
+@dataclass(frozen=True)
+class RenderedFrame:
+    """One camera frame (BGR uint8, height x width x 3) and the labels of the targets in it."""
+
+    image: np.ndarray
+    labels: tuple[TargetLabel, ...]
+
+
+def attitude_from_velocity(velocity_enu: np.ndarray, tilt_per_mps: float = math.radians(2.5)) -> Rotation:
+    """A multicopter's attitude from its velocity: nose along the ground track, pitched into the motion."""
+    v = np.asarray(velocity_enu, dtype=float)
+    speed = float(np.hypot(v[0], v[1]))
+    yaw = math.atan2(v[1], v[0]) if speed > 0.1 else 0.0
+    pitch = min(speed * tilt_per_mps, math.radians(30.0))
+    # FLU body: a positive rotation about body y pitches the nose down.
+    return Rotation.from_euler("ZY", [yaw, pitch])
+
+
+@dataclass(frozen=True)
+class _CompiledModel:
+    kind: str
+    sphere_c: np.ndarray
+    sphere_r: np.ndarray
+    sphere_col: np.ndarray
+    rod_a: np.ndarray
+    rod_b: np.ndarray
+    rod_r: np.ndarray
+    rod_col: np.ndarray
+    disc_pts: np.ndarray  # (D, sides, 3)
+    disc_col: np.ndarray
+    disc_alpha: np.ndarray
+
+
+def _compile(model: TargetModel) -> _CompiledModel:
+    def pick(shape: str):
+        return [p for p in model.parts if p.shape == shape]
+
+    ring = np.stack([np.cos(np.linspace(0, 2 * np.pi, _DISC_SIDES, endpoint=False)),
+                     np.sin(np.linspace(0, 2 * np.pi, _DISC_SIDES, endpoint=False)),
+                     np.zeros(_DISC_SIDES)], axis=1)
+    s, r, d = pick("sphere"), pick("rod"), pick("disc")
+    return _CompiledModel(
+        kind=model.kind,
+        sphere_c=np.array([p.a for p in s], float).reshape(-1, 3),
+        sphere_r=np.array([p.radius for p in s], float),
+        sphere_col=np.array([p.colour for p in s], float).reshape(-1, 3),
+        rod_a=np.array([p.a for p in r], float).reshape(-1, 3),
+        rod_b=np.array([p.b for p in r], float).reshape(-1, 3),
+        rod_r=np.array([p.radius for p in r], float),
+        rod_col=np.array([p.colour for p in r], float).reshape(-1, 3),
+        disc_pts=np.array([np.asarray(p.a) + p.radius * ring for p in d], float).reshape(-1, _DISC_SIDES, 3),
+        disc_col=np.array([p.colour for p in d], float).reshape(-1, 3),
+        disc_alpha=np.array([p.alpha for p in d], float),
+    )
+
+
+class Renderer:
+    """Draws camera frames of a :class:`GroundScene` and targets for a :class:`CameraModel`.
+
+    Args:
+        camera: the camera (its width/height are the frame size).
+        scene: the ground.
+        noise_seed: seed of the fixed noise tile the sensor noise is cut from.
+    """
+
+    def __init__(self, camera: CameraModel, scene: GroundScene, noise_seed: int = 0) -> None:
+        self.camera = camera
+        self.scene = scene
+        w, h = camera.width_px, camera.height_px
+        fx, fy = camera.focal_px
+        self._k = np.array([[fx, 0.0, 0.5 * w], [0.0, fy, 0.5 * h], [0.0, 0.0, 1.0]])
+        u = (np.arange(w, dtype=np.float32) + 0.5 - 0.5 * w) / fx
+        v = (np.arange(h, dtype=np.float32) + 0.5 - 0.5 * h) / fy
+        self._u_lo = cv2.resize(np.repeat(u[None, :], h, 0), (w // _COARSE, h // _COARSE), interpolation=cv2.INTER_AREA)
+        self._v_lo = cv2.resize(np.repeat(v[:, None], w, 1), (w // _COARSE, h // _COARSE), interpolation=cv2.INTER_AREA)
+        self._inv_norm_lo = 1.0 / np.sqrt(1.0 + self._u_lo**2 + self._v_lo**2)
+        tile_rng = np.random.default_rng(noise_seed)
+        self._noise = np.clip(tile_rng.standard_normal((h + 64, w + 64, 3)) * 20.0, -127, 127).astype(np.int8)  # sigma 20
+        self._models = {}
+        self._ground_mean = tuple(float(c) for c in scene.texture.reshape(-1, 3).mean(axis=0))
+
+    def _model(self, kind: str, variant: int = 0) -> _CompiledModel:
+        if (kind, variant) not in self._models:
+            self._models[(kind, variant)] = _compile(model_for(kind, variant))
+        return self._models[(kind, variant)]
+
+    def render(self, vehicle_pos_enu: np.ndarray, body_attitude: Rotation, targets: Sequence[TargetPose],
+               lighting: Lighting, rng: np.random.Generator, blur_px: float = 0.0, blur_angle_rad: float = 0.0) -> RenderedFrame:
+        """The frame seen from the vehicle's pose; ``blur_px`` is the motion-blur streak length."""
+        cam = self.camera
+        w, h = cam.width_px, cam.height_px
+        r_ce = cam.camera_to_enu(body_attitude).as_matrix()  # optical -> ENU
+        c_enu = cam.position_enu(vehicle_pos_enu, body_attitude)
+        sun = lighting.sun_enu()
+        # Ground through the homography K R^T [e1 e2 -C] G (G: texture pixel -> ground metres).
+        rt = r_ce.T
+        hg = self._k @ np.column_stack([rt[:, 0], rt[:, 1], -rt @ c_enu]) @ self.scene.texture_to_ground()
+        # Beyond the texture the ground is its mean colour (BORDER_REFLECT would loop for near-horizon rays).
+        ground_img = cv2.warpPerspective(self.scene.texture, hg, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                                         borderValue=self._ground_mean)
+        ground_img = cv2.convertScaleAbs(ground_img, alpha=0.55 + 0.55 * max(float(sun[2]), 0.0))
+        # Sky and haze vary slowly: work them out on a coarse grid, then blend at full size.
+        # Ray elevation: the ENU up-component of the optical ray, linear in (u, v).
+        up = (r_ce[2, 0] * self._u_lo + r_ce[2, 1] * self._v_lo + r_ce[2, 2]) * self._inv_norm_lo
+        ground = up < 0.0
+        height = max(float(c_enu[2]), 0.05)
+        dist = height / np.maximum(-up, 1e-4)
+        weight = np.where(ground, np.exp(-dist / lighting.haze_m), 0.0).astype(np.float32)
+        zen = np.asarray(lighting.sky_zenith, np.float32)
+        hor = np.asarray(lighting.sky_horizon, np.float32)
+        sky = hor + (zen - hor) * np.sqrt(np.clip(up, 0.0, 1.0))[..., None]
+        back = np.clip(np.where(ground[..., None], hor, sky), 0, 255).astype(np.uint8)
+        back = cv2.resize(back, (w, h), interpolation=cv2.INTER_LINEAR)
+        weight = cv2.resize(weight, (w, h), interpolation=cv2.INTER_LINEAR)
+        img = cv2.blendLinear(ground_img, back, weight, 1.0 - weight)
+        if lighting.brightness != 1.0:
+            img = cv2.convertScaleAbs(img, alpha=lighting.brightness)
+        labels = self._draw_targets(img, r_ce, c_enu, targets, sun, lighting.brightness)
+        if blur_px >= 1.5:
+            img = _motion_blur(img, blur_px, blur_angle_rad)
+        if lighting.noise_sigma > 0:
+            oy, ox = rng.integers(0, 64, size=2)
+            noise = self._noise[oy:oy + h, ox:ox + w]
+            img = cv2.addWeighted(img, 1.0, noise, lighting.noise_sigma / 20.0, 0.0, dtype=cv2.CV_8U)
+        if lighting.jpeg_quality > 0:
+            ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, int(lighting.jpeg_quality)])
+            img = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+        return RenderedFrame(image=img, labels=labels)
+
+    def _draw_targets(self, img: np.ndarray, r_ce: np.ndarray, c_enu: np.ndarray, targets: Sequence[TargetPose],
+                      sun: np.ndarray, brightness: float) -> tuple[TargetLabel, ...]:
+        w, h = self.camera.width_px, self.camera.height_px
+        fx, fy = self.camera.focal_px
+        order = sorted(range(len(targets)), key=lambda i: -float(np.linalg.norm(np.asarray(targets[i].position_enu) - c_enu)))
+        labels = []
+        for i in order:
+            t = targets[i]
+            m = self._model(t.kind, t.variant)
+            rot = t.attitude.as_matrix()
+            pos = np.asarray(t.position_enu, float)
+
+            def to_cam(p: np.ndarray) -> np.ndarray:
+                return (p.reshape(-1, 3) @ rot.T + pos - c_enu) @ r_ce
+
+            centre_c = to_cam(np.zeros(3))[0]
+            if centre_c[2] < 0.3:
+                continue
+            rng_m = float(np.linalg.norm(centre_c))
+            sc, rc_a, rc_b = to_cam(m.sphere_c), to_cam(m.rod_a), to_cam(m.rod_b)
+            dc = to_cam(m.disc_pts).reshape(-1, _DISC_SIDES, 3)
+            if np.concatenate([sc[:, 2], rc_a[:, 2], rc_b[:, 2], dc[..., 2].ravel()]).min() < 0.05:
+                continue  # part of the target is behind the lens: too close to draw
+
+            def px(c: np.ndarray) -> np.ndarray:
+                return np.stack([0.5 * w + fx * c[..., 0] / c[..., 2], 0.5 * h + fy * c[..., 1] / c[..., 2]], axis=-1)
+
+            ps, pa, pb, pd = px(sc), px(rc_a), px(rc_b), px(dc)
+            rs = m.sphere_r * fx / sc[:, 2]
+            rr = m.rod_r * fx / (0.5 * (rc_a[:, 2] + rc_b[:, 2]))
+            lo = np.min(np.vstack([ps - rs[:, None], np.minimum(pa, pb) - rr[:, None], pd.reshape(-1, 2)]), axis=0)
+            hi = np.max(np.vstack([ps + rs[:, None], np.maximum(pa, pb) + rr[:, None], pd.reshape(-1, 2)]), axis=0)
+            x0, y0 = max(lo[0], 0.0), max(lo[1], 0.0)
+            x1, y1 = min(hi[0], float(w)), min(hi[1], float(h))
+            if x1 - x0 < 1.0 or y1 - y0 < 1.0:
+                continue
+            # Lighting: top surfaces catch the sun, the rest sees sky light.
+            up_body = rot[:, 2]
+            shade = brightness * (0.55 + 0.45 * max(0.0, float(up_body @ sun)))
+            self._draw_model(img, m, ps, rs, pa, pb, rr, pd, sc[:, 2], 0.5 * (rc_a[:, 2] + rc_b[:, 2]), dc[..., 2].mean(axis=1), shade)
+            cpx = px(centre_c)
+            truncated = bool(lo[0] < 0 or lo[1] < 0 or hi[0] > w or hi[1] > h)
+            labels.append(TargetLabel(i, t.kind, (float(x0), float(y0), float(x1), float(y1)),
+                                      (float(cpx[0]), float(cpx[1])), rng_m, truncated))
+        return tuple(sorted(labels, key=lambda lab: lab.index))
+
+    @staticmethod
+    def _draw_model(img, m: _CompiledModel, ps, rs, pa, pb, rr, pd, zs, zr, zd, shade: float) -> None:
+        s = 16.0  # fixed-point sub-pixel drawing (4 fractional bits)
+        items = [(z, 0, k) for k, z in enumerate(zs)] + [(z, 1, k) for k, z in enumerate(zr)] + [(z, 2, k) for k, z in enumerate(zd)]
+        items.sort(key=lambda it: -it[0])
+        for _, kind, k in items:
+            if kind == 0:
+                col = tuple(float(c) for c in np.clip(m.sphere_col[k] * shade, 0, 255))
+                cv2.circle(img, (int(ps[k, 0] * s), int(ps[k, 1] * s)), max(int(rs[k] * s), 8), col, -1, cv2.LINE_AA, 4)
+            elif kind == 1:
+                col = tuple(float(c) for c in np.clip(m.rod_col[k] * shade, 0, 255))
+                cv2.line(img, (int(pa[k, 0] * s), int(pa[k, 1] * s)), (int(pb[k, 0] * s), int(pb[k, 1] * s)), col,
+                         max(int(round(2 * rr[k])), 1), cv2.LINE_AA, 4)
+            else:
+                poly = (pd[k] * s).astype(np.int32)
+                bx, by, bw, bh = cv2.boundingRect(poly)
+                bx0, by0 = max(bx // 16 - 1, 0), max(by // 16 - 1, 0)
+                bx1, by1 = min((bx + bw) // 16 + 2, img.shape[1]), min((by + bh) // 16 + 2, img.shape[0])
+                if bx1 <= bx0 or by1 <= by0:
+                    continue
+                roi = img[by0:by1, bx0:bx1]
+                layer = roi.copy()
+                col = tuple(float(c) for c in np.clip(m.disc_col[k] * shade, 0, 255))
+                shifted = poly - np.array([bx0 * 16, by0 * 16], np.int32)
+                cv2.fillPoly(layer, [shifted], col, cv2.LINE_AA, 4)
+                a = float(m.disc_alpha[k])
+                cv2.addWeighted(layer, a, roi, 1.0 - a, 0.0, dst=roi)
+
+
+def _motion_blur(img: np.ndarray, length_px: float, angle_rad: float) -> np.ndarray:
+    n = int(min(max(round(length_px), 2), 25)) | 1
+    kernel = np.zeros((n, n), np.float32)
+    c = n // 2
+    dx, dy = math.cos(angle_rad) * c, math.sin(angle_rad) * c
+    cv2.line(kernel, (int(round(c - dx)), int(round(c - dy))), (int(round(c + dx)), int(round(c + dy))), 1.0, 1, cv2.LINE_AA)
+    kernel /= kernel.sum()
+    return cv2.filter2D(img, -1, kernel, borderType=cv2.BORDER_REFLECT)
