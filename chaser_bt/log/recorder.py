@@ -206,24 +206,8 @@ class Recorder:
         self._undo.append(lambda: setattr(obj, name, old) if had else delattr(obj, name))
 
     def _wrap_link(self, link: VehicleLink) -> None:
-        conn_recv, link_poll = link.conn.recv, link.poll
-        link_now: Callable[[], float] = link._now  # the link's own timer clock: replay needs it per poll
-
-        def recv(*args: Any, **kwargs: Any) -> Any:
-            data = conn_recv(*args, **kwargs)
-            if data:
-                self._rx += data
-            return data
-
-        def poll() -> int:
-            mono = link_now()
-            try:
-                return link_poll()
-            finally:
-                self._guarded(self._on_poll)(mono)
-
-        self._replace(link.conn, "recv", recv)
-        self._replace(link, "poll", poll)
+        """Record every read from the vehicle and the link time of each poll (the link's wire tap)."""
+        self._undo.append(link.add_wire_tap(self._rx.extend, self._guarded(self._on_poll)))
 
     def _record_preamble(self, link: VehicleLink) -> None:
         """The latest message of each type the link already had from its vehicle, as a read that
@@ -241,7 +225,7 @@ class Recorder:
         data = b"".join(bytes(m.get_msgbuf()) for m in msgs)
         t = self._clock()
         self.write(S.TOPIC_MAVLINK_READ, S.json_bytes(
-            {"mono_s": link._now(), "t": t if math.isfinite(t) else None, "data_b64": S.b64(data), "preamble": True}))
+            {"mono_s": link.now(), "t": t if math.isfinite(t) else None, "data_b64": S.b64(data), "preamble": True}))
 
     def _wrap_radar(self, feed: Any) -> None:
         self._replace(feed, "source", _RecordingDatagramSource(feed.source, self))
@@ -502,7 +486,7 @@ def _metadata(runner: MissionRunner, link: VehicleLink, resources: Mapping[str, 
         # Never the signing key: a log is shared; replay reads signed bytes without checking them.
         "link_config": S.json_bytes({k: v for k, v in S.jsonable(link.config).items() if k != "signing"}).decode(),
         "link_signed": str(getattr(link.config, "signing", None) is not None).lower(),
-        "link_opened_mono_s": repr(float(link._opened_at)),  # the link's clock when it opened (its timers start there)
+        "link_opened_mono_s": repr(float(link.opened_at_s)),  # the link's clock when it opened (its timers start there)
         "recorded_at_unix_s": repr(time.time()),
     }
     radar = resources.get("radar")

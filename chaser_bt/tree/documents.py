@@ -19,7 +19,7 @@ from chaser_bt.tree.model import Location, TreeDocument
 from chaser_bt.tree.xml_format import parse_xml
 from chaser_bt.tree.yaml_format import parse_yaml
 
-__all__ = ["TREE_FORMATS", "format_of", "parse_document", "read_document", "read_text", "merge_includes"]
+__all__ = ["TREE_FORMATS", "format_of", "parse_document", "read_document", "read_text", "merge_includes", "tree_files"]
 
 TREE_FORMATS = ("yaml", "xml")
 
@@ -110,3 +110,25 @@ def merge_includes(
         known = {arg.value for arg in merged.inputs}
         merged.inputs += [arg for arg in included.inputs if arg.value not in known]
     return merged, problems
+
+
+def tree_files(path: str | Path) -> list[Path]:
+    """``path`` and every file it includes, directly or through others: resolved, each once, in the
+    order they are first included. Everything a tree's behaviour depends on besides the code (a
+    campaign fingerprints them). Unreadable or missing includes are left out; loading reports them."""
+    found: list[Path] = []
+
+    def visit(file: Path) -> None:
+        if file in found or not file.is_file():
+            return
+        found.append(file)
+        text, _ = read_text(file)
+        if text is None:
+            return
+        document, _ = parse_document(text, str(file), format_of(file))
+        for include in document.includes:
+            target = Path(str(include.value))
+            visit((target if target.is_absolute() else file.parent / target).resolve())
+
+    visit(Path(path).resolve())
+    return found

@@ -19,6 +19,11 @@ or a real aircraft; only the connection string changes (DESIGN §5). Its rules:
   own telemetry) are not ours to authenticate; they reach listeners as before and never the state.
 - A command counts as accepted only when ArduCopter acked it *and*, where telemetry can show it,
   telemetry shows it (mode in HEARTBEAT.custom_mode, armed flag): ArduPilot acks first.
+- Two public hooks observe it: :meth:`~VehicleLink.add_listener` sees decoded messages both ways;
+  :meth:`~VehicleLink.add_wire_tap` sees the raw bytes read from the connection and the link time
+  of every :meth:`~VehicleLink.poll`, with :meth:`~VehicleLink.now` and
+  :attr:`~VehicleLink.opened_at_s` (the flight recorder's hook: replay feeds those bytes back at
+  those times to an identical link).
 """
 
 from __future__ import annotations
@@ -176,6 +181,7 @@ class VehicleLink:
         self._next_rc = t
         self._on_receive: list[Callable[[Any], None]] = []
         self._on_send: list[Callable[[Any], None]] = []
+        self._wire_taps: list[tuple[Callable[[bytes], None], Callable[[float], None]]] = []
         conn.mav.set_send_callback(self._notify_sent)
         self.signing: SigningGate | None = None
         if config.signing is not None:
@@ -237,7 +243,23 @@ class VehicleLink:
             VehicleQuiet: nothing from the vehicle for ``quiet_timeout_s`` (raised on every poll
                 until it speaks again; heartbeats and retries are still sent first).
         """
-        return self._poll(check_quiet=True)
+        if not self._wire_taps:
+            return self._poll(check_quiet=True)
+        started = self._now()
+        try:
+            return self._poll(check_quiet=True)
+        finally:
+            for _, on_poll in list(self._wire_taps):
+                on_poll(started)
+
+    def now(self) -> float:
+        """The link's own clock (the injected ``monotonic``), on which every timer of the link runs."""
+        return self._now()
+
+    @property
+    def opened_at_s(self) -> float:
+        """:meth:`now` when the link was opened: its timers and ``time_boot_ms`` count from here."""
+        return self._opened_at
 
     def _poll(self, *, check_quiet: bool) -> int:
         now = self._now()
@@ -478,7 +500,40 @@ class VehicleLink:
         if on_send is not None:
             self._on_send.append(on_send)
 
+    def add_wire_tap(self, on_read: Callable[[bytes], None], on_poll: Callable[[float], None]) -> Callable[[], None]:
+        """Observe the raw link: ``on_read(data)`` gets every chunk of bytes read from the connection
+        (by :meth:`poll`, :meth:`wait` or :meth:`connect`), ``on_poll(t)`` runs after each :meth:`poll`
+        with the link time (:meth:`now`) at which that poll began, even when it raised.
+
+        Feeding the same bytes at the same times to a link with the same configuration reproduces
+        this one exactly (the flight recorder and replay rely on it). Both run inside the link, so
+        they must be quick and must not raise. Returns a function that removes the tap.
+        """
+        if not self._wire_taps:
+            self._tap_connection()
+        tap = (on_read, on_poll)
+        self._wire_taps.append(tap)
+
+        def remove() -> None:
+            if tap in self._wire_taps:
+                self._wire_taps.remove(tap)
+
+        return remove
+
     # ----------------------------------------------------------------------------- internals
+    def _tap_connection(self) -> None:
+        """Route the connection's reads through the wire taps (once; pymavlink reads with ``recv``)."""
+        conn_recv = self.conn.recv
+
+        def recv(*args: Any, **kwargs: Any) -> Any:
+            data = conn_recv(*args, **kwargs)
+            if data:
+                for on_read, _ in list(self._wire_taps):
+                    on_read(bytes(data))
+            return data
+
+        self.conn.recv = recv
+
     def _notify_sent(self, msg: Any) -> None:
         for listener in self._on_send:
             listener(msg)

@@ -116,8 +116,12 @@ def find_scenarios(path: str | Path) -> list[Path]:
     raise CampaignError(f"--scenarios {path}: no such file or folder")
 
 
-def _digest(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+def _digest(*paths: Path) -> str:
+    """The contents of ``paths``, in order, as 16 hex digits (their names do not count)."""
+    h = hashlib.sha256()
+    for path in paths:
+        h.update(hashlib.sha256(path.read_bytes()).digest())
+    return h.hexdigest()[:16]
 
 
 @dataclass(frozen=True)
@@ -129,7 +133,7 @@ class RunSpec:
     seed: int
     camera: bool = True
     quick: bool = False
-    fingerprint: str = ""  # tree and scenario contents: a stored result counts only if it matches
+    fingerprint: str = ""  # contents of the tree, its includes and the scenario: a stored result counts only if it matches
 
     @property
     def scenario_stem(self) -> str:
@@ -184,7 +188,9 @@ class CampaignConfig:
     success: SuccessRule = field(default_factory=SuccessRule)
 
     def specs(self) -> list[RunSpec]:
-        tree_digest = _digest(self.tree)
+        from chaser_bt.tree.documents import tree_files
+
+        tree_digest = _digest(*tree_files(self.tree))  # the tree and every file it includes
         return [
             RunSpec(str(self.tree.resolve()), str(sc.resolve()), seed, self.camera, self.quick,
                     f"{tree_digest}-{_digest(sc)}-{'cam' if self.camera else 'nocam'}{'-quick' if self.quick else ''}")

@@ -19,6 +19,7 @@ from chaser_bt.tree import (
     render_tree,
 )
 from chaser_bt.tree import registry as registry_module
+from chaser_bt.tree.documents import tree_files
 from chaser_bt.tree.yaml_format import dump_yaml, parse_yaml
 
 Blackboard = py_trees.blackboard.Blackboard
@@ -328,3 +329,11 @@ def test_a_behaviour_mutating_a_literal_it_read_does_not_change_the_tree(registr
     reset_blackboard()
     tick(tree)
     assert script.reads["Target"]["offset_m"] == [1.0, 2.0, 3.0]
+
+
+def test_tree_files_lists_the_tree_and_every_file_it_includes_once(tmp_path):
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "main.yaml").write_text("version: 1\nincludes: [sub/a.yaml, b.xml]\nmain: M\ntrees:\n  M:\n    SubTree: {ID: A}\n")
+    (tmp_path / "sub/a.yaml").write_text("version: 1\nincludes: [../b.xml, missing.yaml]\ntrees:\n  A:\n    SubTree: {ID: B}\n")
+    (tmp_path / "b.xml").write_text('<root BTCPP_format="4"><BehaviorTree ID="B"><AlwaysSuccess/></BehaviorTree></root>\n')
+    assert tree_files(tmp_path / "main.yaml") == [(tmp_path / p).resolve() for p in ("main.yaml", "sub/a.yaml", "b.xml")]

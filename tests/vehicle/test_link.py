@@ -507,3 +507,30 @@ def test_listeners_see_every_message_in_and_out(rig):
     assert "HEARTBEAT" in received and received.count("HEARTBEAT") == rig.link.counters.received["HEARTBEAT"] - heartbeats_before
     assert "COMMAND_LONG" in sent and sent.count("HEARTBEAT") >= 2  # the GCS heartbeat at 1 Hz
 
+
+
+# ----------------------------------------------------------------------------- the wire tap
+def test_wire_tap_sees_every_byte_the_vehicle_sent_and_the_time_of_every_poll():
+    r = make_rig()
+    sent = bytearray()
+    fake_write = r.fake.end.write
+    r.fake.end.write = lambda data: (sent.extend(data), fake_write(data))[1]
+    read, polls = bytearray(), []
+    remove = r.link.add_wire_tap(read.extend, polls.append)
+    r.run(1.0, dt=0.25)  # fake ticks, link polls, clock moves on: 4 polls at 0, 0.25, 0.5, 0.75
+    assert polls == [0.0, 0.25, 0.5, 0.75]
+    assert len(sent) > 0 and bytes(read) == bytes(sent)
+    assert r.link.opened_at_s == 0.0 and r.link.now() == 1.0
+    remove()
+    r.run(0.5, dt=0.25)
+    assert polls == [0.0, 0.25, 0.5, 0.75] and len(read) < len(sent)  # removed: sees nothing more
+
+
+def test_wire_tap_reports_a_poll_that_raised():
+    r = make_rig(LinkConfig(quiet_timeout_s=1.0))
+    polls = []
+    r.link.add_wire_tap(lambda data: None, polls.append)
+    r.clock.set(5.0)  # nothing ever heard for longer than the quiet timeout
+    with pytest.raises(VehicleQuiet):
+        r.link.poll()
+    assert polls == [5.0]

@@ -164,6 +164,53 @@ trees:
 """
 
 
+HOP_MAIN = """\
+version: 1
+includes: [parts/land.yaml]
+main: Hop
+trees:
+  Hop:
+    Sequence:
+      children:
+        - ArmAndTakeoff: {altitude_m: 5}
+        - SubTree: {ID: Down}
+"""
+HOP_PARTS = {
+    "parts/land.yaml": "version: 1\nincludes: [deeper.yaml]\ntrees:\n  Down:\n    SubTree: {ID: Deeper}\n",
+    "parts/deeper.yaml": "version: 1\ntrees:\n  Deeper:\n    Land: {name: land}\n",
+}
+
+
+def test_campaign_flies_again_when_a_file_the_tree_includes_changes(tmp_path, inputs):
+    _, scenario = inputs
+    tree = tmp_path / "hop_main.yaml"
+    tree.write_text(HOP_MAIN)
+    for name, text in HOP_PARTS.items():
+        (tmp_path / name).parent.mkdir(exist_ok=True)
+        (tmp_path / name).write_text(text)
+    (tmp_path / "parts/unused.yaml").write_text(HOP_PARTS["parts/deeper.yaml"])
+    config = CampaignConfig(tree=tree, scenarios=[scenario], seeds=[1, 2], out_dir=tmp_path / "out")
+    EXECUTED.clear()
+    cm.run_campaign(config, runner=_fake_runner, report=False)
+    assert len(EXECUTED) == 2
+
+    EXECUTED.clear()
+    (tmp_path / "parts/unused.yaml").write_text("# not included by the tree\n")
+    cm.run_campaign(config, runner=_fake_runner, report=False)
+    assert EXECUTED == []  # nothing the tree reads changed
+
+    for edited in ("parts/deeper.yaml", "parts/land.yaml"):  # included through another file, then directly
+        EXECUTED.clear()
+        (tmp_path / edited).write_text((tmp_path / edited).read_text() + "# edited\n")
+        cm.run_campaign(config, runner=_fake_runner, report=False)
+        assert len(EXECUTED) == 2, edited
+
+    EXECUTED.clear()
+    scenario.write_text(scenario.read_text() + "\n# edited\n")
+    cm.run_campaign(config, runner=_fake_runner, report=False)
+    assert len(EXECUTED) == 2
+
+
 @pytest.fixture
 def inputs(tmp_path):
     """A short mission (take off to 5 m, land: about a minute of sim time) on the patrol field."""
