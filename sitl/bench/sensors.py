@@ -55,6 +55,7 @@ from sitl.bench.radar_trials import (
 )
 from sitl.world.camera.frame_source import SimTarget, SimulatorFrameSource
 from sitl.world.camera.scene import GroundScene, make_ground
+from sitl.world.camera.world import WorldSpec, build_world
 from sitl.world.radar.config import RadarConfig
 from sitl.world.targets import WaypointPath, circle_points
 
@@ -207,8 +208,9 @@ class ScenarioFrameSource:
     """
 
     def __init__(self, simulator: Any, camera_model: CameraModel, targets: list[tuple[SimTarget, Any]],
-                 seed: int) -> None:
+                 seed: int, world: WorldSpec = WorldSpec()) -> None:
         self.simulator = simulator
+        self.world = world
         self.camera = camera_model
         self.targets = targets  # (target, present(t) -> bool)
         self.seed = seed
@@ -217,7 +219,11 @@ class ScenarioFrameSource:
 
     def read(self, t: float) -> Frame | None:
         if self.source is None:
-            self.source = SimulatorFrameSource(self.simulator, self.camera, [], self.seed, ground=shared_ground())
+            if self.world.family == "plain" and self.world.seed is None:
+                self.source = SimulatorFrameSource(self.simulator, self.camera, [], self.seed, ground=shared_ground())
+            else:
+                world = build_world(self.world, self.seed, self.camera.width_px, self.camera.height_px)
+                self.source = SimulatorFrameSource(self.simulator, self.camera, [], self.seed, world=world)
         now = float(self.simulator.time_s)
         shown = [k for k, (_, present) in enumerate(self.targets) if present(now)]
         self.source.targets = [self.targets[k][0] for k in shown]
@@ -291,7 +297,7 @@ def build_sensors(vehicle: InProcessVehicle, options: SensorOptions, seed: int) 
         if options.camera_detection:
             targets += [(SimTarget(intruder.spec.airframe, intruder), _always) for intruder in sim.intruders]
             targets += [(SimTarget(tg.kind, tg.path, k), tg.present) for k, tg in enumerate(scenario.targets)]
-        out.frame_source = ScenarioFrameSource(sim, model, targets, seed)
+        out.frame_source = ScenarioFrameSource(sim, model, targets, seed, scenario.camera_world)
         out.camera = CameraSensor(out.frame_source, VisionPipeline(model, _shipped_detector))
         out.resources["camera"] = out.camera
     if options.telemetry and sim.intruders:

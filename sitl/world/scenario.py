@@ -33,6 +33,7 @@ from sitl.vehicle.setup import (
     PilotScript,
 )
 from sitl.world.camera.models import TARGET_MODELS
+from sitl.world.camera.world import FAMILIES, WorldSpec
 from sitl.world.intruders import TRAJECTORY_KINDS, IntruderLimits, IntruderSpec
 from sitl.world.radar.config import RadarClutter, RadarConfig, RadarFailureRates
 from sitl.world.targets import CirclePath, StaticPoint, TargetPath, WaypointPath
@@ -95,6 +96,7 @@ class Scenario:
     intruders: tuple[IntruderSpec, ...] = ()
     pilot: PilotScript | None = None
     ground_station: tuple[GroundStationEvent, ...] = ()
+    camera_world: WorldSpec = field(default_factory=WorldSpec)  # what the rendered camera looks at
 
     def fault_active(self, kind: str, t: float) -> bool:
         """Whether any fault of ``kind`` is in force at sim time ``t``."""
@@ -171,7 +173,7 @@ class _Parser:
     def scenario(self, d: Any) -> Scenario:
         top = self.mapping(d, "", ("name", "home", "wind", "airframe", "params", "boot",
                                    "faults", "time_limit_s", "start_unix_s", "radar", "targets",
-                                   "intruders", "pilot", "ground_station"))
+                                   "intruders", "pilot", "ground_station", "camera_world"))
         if d is None:
             raise self.fail("", "a scenario mapping (the document is empty)")
         name = top.get("name", "unnamed")
@@ -193,9 +195,28 @@ class _Parser:
             targets=(targets := self.targets(top.get("targets"))),
             pilot=self.pilot(top.get("pilot")),
             ground_station=self.ground_station(top.get("ground_station")),
+            camera_world=self.camera_world(top.get("camera_world")),
             intruders=self.intruders(top.get("intruders"), {t.name for t in targets},
                                      int(self.params(top.get("params")).get("SYSID_THISMAV", 1))),
         )
+
+    def camera_world(self, d: Any) -> WorldSpec:
+        if d is None:
+            return WorldSpec()
+        m = self.mapping(d, "camera_world", ("family", "seed", "clutter", "distractors", "effects"))
+        family = m.get("family", "plain")
+        if family != "plain" and family not in FAMILIES:
+            raise self.fail("camera_world.family", "one of plain, " + ", ".join(FAMILIES), family)
+        seed = m.get("seed")
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
+            raise self.fail("camera_world.seed", "an integer >= 0, or null for the run's seed", seed)
+        flags = {}
+        for key in ("clutter", "distractors", "effects"):
+            v = m.get(key, True)
+            if not isinstance(v, bool):
+                raise self.fail(f"camera_world.{key}", "true or false", v)
+            flags[key] = v
+        return WorldSpec(family, seed, **flags)
 
     def home(self, d: Any) -> tuple[GeoPoint, float]:
         if d is None:

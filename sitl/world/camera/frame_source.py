@@ -22,6 +22,7 @@ from sitl.world.camera.renderer import (
     attitude_from_velocity,
 )
 from sitl.world.camera.scene import GroundScene, make_ground
+from sitl.world.camera.world import CameraWorld
 
 __all__ = ["SimTarget", "SimulatorFrameSource"]
 
@@ -53,17 +54,22 @@ class SimulatorFrameSource:
         exposure_s: shutter time for motion blur.
         ground: a ground already made (shared between runs: making one takes a second or two);
             None makes the one of ``ground_seed``.
+        world: a camera world (:mod:`sitl.world.camera.world`) to render instead: its ground, sky,
+            clutter, distractors, camera effects and lighting replace ``ground`` and ``lighting``.
     """
 
     def __init__(self, simulator: Any, camera_model: CameraModel, targets: Sequence[SimTarget], seed: int,
                  lighting: Lighting = Lighting(), ground_seed: int = 7, exposure_s: float = 0.01,
-                 ground: GroundScene | None = None) -> None:
+                 ground: GroundScene | None = None, world: CameraWorld | None = None) -> None:
         self.simulator = simulator
         self.camera = camera_model
         self.targets = list(targets)
-        self.lighting = lighting
+        self.lighting = lighting if world is None else world.lighting
         self.exposure_s = exposure_s
-        self.renderer = Renderer(camera_model, ground if ground is not None else make_ground(ground_seed), noise_seed=seed)
+        if world is not None:
+            self.renderer = Renderer(camera_model, world=world, noise_seed=seed)
+        else:
+            self.renderer = Renderer(camera_model, ground if ground is not None else make_ground(ground_seed), noise_seed=seed)
         self.rng = np.random.default_rng(seed)
         self._last: tuple[float, Rotation] | None = None
         self._index = 0
@@ -78,7 +84,8 @@ class SimulatorFrameSource:
             rate = np.linalg.norm((att * self._last[1].inv()).as_rotvec()) / (sim_t - self._last[0])
             blur = rate * self.exposure_s * self.camera.focal_px[0]
         self._last = (sim_t, att)
-        frame = self.renderer.render(truth.pos_enu, att, [tg.pose(sim_t) for tg in self.targets], self.lighting, self.rng, blur_px=blur)
+        frame = self.renderer.render(truth.pos_enu, att, [tg.pose(sim_t) for tg in self.targets], self.lighting, self.rng, blur_px=blur,
+                                     t=sim_t)
         self.last_labels = frame.labels  # for scoring only
         out = Frame(t, frame.image, self._index)
         self._index += 1

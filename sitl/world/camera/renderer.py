@@ -22,40 +22,17 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from chaser_bt.vision.camera import CameraModel
+from sitl.world.camera.lighting import Lighting
 from sitl.world.camera.models import TargetModel, model_for
+from sitl.world.camera.effects import vignette_map
+from sitl.world.camera.fields import DETAIL_M_PER_PX
 from sitl.world.camera.scene import GroundScene
+from sitl.world.camera.world import CameraWorld
 
 __all__ = ["Lighting", "TargetPose", "TargetLabel", "RenderedFrame", "Renderer", "attitude_from_velocity"]
 
 _DISC_SIDES = 12
 _COARSE = 4  # sky and haze grid step (pixels)
-
-
-@dataclass(frozen=True)
-class Lighting:
-    """Scene lighting and sensor settings.
-
-    Args:
-        sun_azimuth_rad, sun_elevation_rad: ENU azimuth (from east, counter-clockwise) and elevation.
-        brightness: overall gain (1 = nominal exposure).
-        haze_m: visibility distance of the ground haze (m).
-        sky_zenith, sky_horizon: BGR sky colours.
-        noise_sigma: additive sensor noise (grey levels, 1-sigma).
-        jpeg_quality: 1..100, or 0 for no compression.
-    """
-
-    sun_azimuth_rad: float = 0.8
-    sun_elevation_rad: float = 0.8
-    brightness: float = 1.0
-    haze_m: float = 900.0
-    sky_zenith: tuple[float, float, float] = (200.0, 140.0, 90.0)
-    sky_horizon: tuple[float, float, float] = (235.0, 215.0, 200.0)
-    noise_sigma: float = 3.0
-    jpeg_quality: int = 85
-
-    def sun_enu(self) -> np.ndarray:
-        ce = math.cos(self.sun_elevation_rad)
-        return np.array([ce * math.cos(self.sun_azimuth_rad), ce * math.sin(self.sun_azimuth_rad), math.sin(self.sun_elevation_rad)])
 
 
 @dataclass(frozen=True)
@@ -144,10 +121,17 @@ class Renderer:
         camera: the camera (its width/height are the frame size).
         scene: the ground.
         noise_seed: seed of the fixed noise tile the sensor noise is cut from.
+        world: the rest of a camera world (:mod:`sitl.world.camera.world`): sky, poles and power lines,
+            distractors, camera effects; its ground replaces ``scene``. None: the plain field.
     """
 
-    def __init__(self, camera: CameraModel, scene: GroundScene, noise_seed: int = 0) -> None:
+    def __init__(self, camera: CameraModel, scene: GroundScene | None = None, noise_seed: int = 0,
+                 world: CameraWorld | None = None) -> None:
+        if scene is None and world is None:
+            raise ValueError("Renderer needs a ground scene or a camera world")
         self.camera = camera
+        self.world = world
+        scene = world.ground if world is not None else scene
         self.scene = scene
         w, h = camera.width_px, camera.height_px
         fx, fy = camera.focal_px
@@ -161,6 +145,9 @@ class Renderer:
         self._noise = np.clip(tile_rng.standard_normal((h + 64, w + 64, 3)) * 20.0, -127, 127).astype(np.int8)  # sigma 20
         self._models = {}
         self._ground_mean = tuple(float(c) for c in scene.texture.reshape(-1, 3).mean(axis=0))
+        effects = world.effects if world is not None else None
+        self._vignette_lo = None if effects is None or effects.vignetting <= 0 else cv2.resize(
+            vignette_map(w, h, effects.vignetting), (w // _COARSE, h // _COARSE), interpolation=cv2.INTER_AREA)
 
     def _model(self, kind: str, variant: int = 0) -> _CompiledModel:
         if (kind, variant) not in self._models:
@@ -168,8 +155,10 @@ class Renderer:
         return self._models[(kind, variant)]
 
     def render(self, vehicle_pos_enu: np.ndarray, body_attitude: Rotation, targets: Sequence[TargetPose],
-               lighting: Lighting, rng: np.random.Generator, blur_px: float = 0.0, blur_angle_rad: float = 0.0) -> RenderedFrame:
-        """The frame seen from the vehicle's pose; ``blur_px`` is the motion-blur streak length."""
+               lighting: Lighting, rng: np.random.Generator, blur_px: float = 0.0, blur_angle_rad: float = 0.0,
+               t: float = 0.0) -> RenderedFrame:
+        """The frame seen from the vehicle's pose; ``blur_px`` is the motion-blur streak length and
+        ``t`` the time (s) that places a world's birds and aircraft and its camera's drift."""
         cam = self.camera
         w, h = cam.width_px, cam.height_px
         r_ce = cam.camera_to_enu(body_attitude).as_matrix()  # optical -> ENU
@@ -177,30 +166,53 @@ class Renderer:
         sun = lighting.sun_enu()
         # Ground through the homography K R^T [e1 e2 -C] G (G: texture pixel -> ground metres).
         rt = r_ce.T
-        hg = self._k @ np.column_stack([rt[:, 0], rt[:, 1], -rt @ c_enu]) @ self.scene.texture_to_ground()
-        # Beyond the texture the ground is its mean colour (BORDER_REFLECT would loop for near-horizon rays).
-        ground_img = cv2.warpPerspective(self.scene.texture, hg, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                                         borderValue=self._ground_mean)
-        ground_img = cv2.convertScaleAbs(ground_img, alpha=0.55 + 0.55 * max(float(sun[2]), 0.0))
+        plane = self._k @ np.column_stack([rt[:, 0], rt[:, 1], -rt @ c_enu])
+        hg = plane @ self.scene.texture_to_ground()
         # Sky and haze vary slowly: work them out on a coarse grid, then blend at full size.
         # Ray elevation: the ENU up-component of the optical ray, linear in (u, v).
         up = (r_ce[2, 0] * self._u_lo + r_ce[2, 1] * self._v_lo + r_ce[2, 2]) * self._inv_norm_lo
         ground = up < 0.0
         height = max(float(c_enu[2]), 0.05)
         dist = height / np.maximum(-up, 1e-4)
+        if self.scene.far_texture is None and self.scene.detail is None:
+            # Beyond the texture the ground is its mean colour (BORDER_REFLECT would loop for near-horizon rays).
+            ground_img = cv2.warpPerspective(self.scene.texture, hg, (w, h), flags=cv2.INTER_LINEAR,
+                                             borderMode=cv2.BORDER_CONSTANT, borderValue=self._ground_mean)
+        else:
+            ground_img = self._filtered_ground(plane, dist, ground)
+        ground_img = cv2.convertScaleAbs(ground_img, alpha=0.55 + 0.55 * max(float(sun[2]), 0.0))
         weight = np.where(ground, np.exp(-dist / lighting.haze_m), 0.0).astype(np.float32)
-        zen = np.asarray(lighting.sky_zenith, np.float32)
         hor = np.asarray(lighting.sky_horizon, np.float32)
-        sky = hor + (zen - hor) * np.sqrt(np.clip(up, 0.0, 1.0))[..., None]
-        back = np.clip(np.where(ground[..., None], hor, sky), 0, 255).astype(np.uint8)
+        sky_model = self.world.sky if self.world is not None else None
+        if sky_model is None:
+            zen = np.asarray(lighting.sky_zenith, np.float32)
+            sky = hor + (zen - hor) * np.sqrt(np.clip(up, 0.0, 1.0))[..., None]
+            back = np.clip(np.where(ground[..., None], hor, sky), 0, 255).astype(np.uint8)
+        else:
+            rays = np.stack([self._u_lo, self._v_lo, np.ones_like(self._u_lo)], axis=-1) @ r_ce.T
+            rays *= self._inv_norm_lo[..., None]
+            glare = sky_model.glare_map(rays, sun)[..., None]  # the lens sees it over sky and ground alike
+            back = np.clip(np.where(ground[..., None], hor, sky_model.colour(rays, c_enu)) + glare, 0, 255).astype(np.uint8)
         back = cv2.resize(back, (w, h), interpolation=cv2.INTER_LINEAR)
-        weight = cv2.resize(weight, (w, h), interpolation=cv2.INTER_LINEAR)
-        img = cv2.blendLinear(ground_img, back, weight, 1.0 - weight)
+        if self._vignette_lo is None:
+            weight = cv2.resize(weight, (w, h), interpolation=cv2.INTER_LINEAR)
+            img = cv2.blendLinear(ground_img, back, weight, 1.0 - weight)
+        else:  # the lens darkens the corners: folded into the blend's weights
+            v = self._vignette_lo
+            w_ground = cv2.resize(weight * v, (w, h), interpolation=cv2.INTER_LINEAR)
+            w_back = cv2.resize((1.0 - weight) * v, (w, h), interpolation=cv2.INTER_LINEAR)
+            img = cv2.blendLinear(ground_img, back, w_ground, w_back)
         if lighting.brightness != 1.0:
             img = cv2.convertScaleAbs(img, alpha=lighting.brightness)
+        if self.world is not None:
+            self._draw_world(img, r_ce, c_enu, t)
         labels = self._draw_targets(img, r_ce, c_enu, targets, sun, lighting.brightness)
+        if self.world is not None and self.world.effects is not None:
+            img = cv2.multiply(img, self.world.effects.gains(t) + (1.0,), dtype=cv2.CV_8U)
         if blur_px >= 1.5:
             img = _motion_blur(img, blur_px, blur_angle_rad)
+        if self.world is not None and self.world.specks is not None:
+            self.world.specks.draw(img)
         if lighting.noise_sigma > 0:
             oy, ox = rng.integers(0, 64, size=2)
             noise = self._noise[oy:oy + h, ox:ox + w]
@@ -209,6 +221,72 @@ class Renderer:
             ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, int(lighting.jpeg_quality)])
             img = cv2.imdecode(buf, cv2.IMREAD_COLOR)
         return RenderedFrame(image=img, labels=labels)
+
+    def _filtered_ground(self, plane: np.ndarray, dist_lo: np.ndarray, ground_lo: np.ndarray) -> np.ndarray:
+        """The ground filtered with distance: the pre-filtered copy where a pixel spans several texels
+        (no shimmer toward the horizon), the full texture nearer, and the detail tile's fine grain
+        where the ground is near. Each layer is warped only over the rows where it shows."""
+        w, h = self.camera.width_px, self.camera.height_px
+        scene = self.scene
+        out = np.empty((h, w, 3), np.uint8)
+        out[:] = np.round(self._ground_mean).astype(np.uint8)
+        texels_per_px = np.where(ground_lo, dist_lo / (self.camera.focal_px[0] * scene.metres_per_px), np.inf)
+        far_lo = np.clip((texels_per_px - 0.75) / 0.75, 0.0, 1.0).astype(np.float32)  # all far from 1.5 texels a pixel
+        to_ground = scene.texture_to_ground()
+        near_rows = _rows(far_lo < 1.0, h)
+        if near_rows is not None:
+            _warp_into(out, scene.texture, plane @ to_ground, near_rows, cv2.BORDER_CONSTANT, self._ground_mean)
+        far_rows = _rows(ground_lo & (far_lo > 0.0), h) if scene.far_texture is not None else None
+        if far_rows is not None:
+            r0, r1 = far_rows
+            k = scene.texture.shape[1] / scene.far_texture.shape[1]
+            shift = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -float(r0)], [0.0, 0.0, 1.0]])
+            # Far off the ground goes on past the texture's edge, mirrored: under the haze, no one sees it repeat.
+            far = cv2.warpPerspective(scene.far_texture, shift @ plane @ to_ground @ np.diag([k, k, 1.0]), (w, r1 - r0),
+                                      flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT_101)
+            far_w = cv2.resize(far_lo, (w, h), interpolation=cv2.INTER_LINEAR)[r0:r1]
+            out[r0:r1] = cv2.blendLinear(far, out[r0:r1], far_w, 1.0 - far_w)
+        near_w_lo = np.where(ground_lo, np.clip(1.5 - 0.02 * dist_lo, 0.0, 1.0), 0.0).astype(np.float32)
+        detail_rows = _rows(near_w_lo > 0.0, h) if scene.detail is not None else None
+        if detail_rows is not None:
+            r0, r1 = detail_rows
+            d = DETAIL_M_PER_PX
+            grain = np.empty((h, w), np.uint8)
+            _warp_into(grain, scene.detail, plane @ np.array([[d, 0.0, 0.0], [0.0, -d, 0.0], [0.0, 0.0, 1.0]]),
+                       detail_rows, cv2.BORDER_WRAP, 0)
+            near_w = cv2.resize(near_w_lo, (w, h), interpolation=cv2.INTER_LINEAR)[r0:r1]
+            # The grain fades to 128 (no change) with distance, then scales the ground: out * grain / 128.
+            faded = cv2.blendLinear(grain[r0:r1], np.full_like(grain[r0:r1], 128), near_w, 1.0 - near_w)
+            out[r0:r1] = cv2.multiply(out[r0:r1], cv2.cvtColor(faded, cv2.COLOR_GRAY2BGR), scale=1.0 / 128.0)
+        return out
+
+    def _project(self, r_ce: np.ndarray, c_enu: np.ndarray, points_enu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """ENU points (N, 3) -> pixels (N, 2) and depth along the optical axis (N,)."""
+        c = (np.asarray(points_enu, float).reshape(-1, 3) - c_enu) @ r_ce
+        z = c[:, 2]
+        zs = np.where(np.abs(z) > 1e-6, z, 1e-6)
+        fx, fy = self.camera.focal_px
+        px = np.stack([0.5 * self.camera.width_px + fx * c[:, 0] / zs, 0.5 * self.camera.height_px + fy * c[:, 1] / zs], axis=1)
+        return px, z
+
+    def _draw_world(self, img: np.ndarray, r_ce: np.ndarray, c_enu: np.ndarray, t: float) -> None:
+        """Power lines, then birds and aircraft, drawn before the targets."""
+        world = self.world
+
+        def project(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            return self._project(r_ce, c_enu, points)
+
+        f = self.camera.focal_px[0]
+        for prop in world.props:
+            prop.draw(img, project, f)
+        for plane in world.aircraft:
+            plane.draw(img, project, f, t)
+        if world.birds:  # most birds are out of view at any moment: cull them together first
+            px, z = project(np.array([b.position(t) for b in world.birds]))
+            w, h = self.camera.width_px, self.camera.height_px
+            seen = (z > 1.0) & (px[:, 0] > -50) & (px[:, 0] < w + 50) & (px[:, 1] > -50) & (px[:, 1] < h + 50)
+            for k in np.flatnonzero(seen):
+                world.birds[k].draw(img, project, f, t)
 
     def _draw_targets(self, img: np.ndarray, r_ce: np.ndarray, c_enu: np.ndarray, targets: Sequence[TargetPose],
                       sun: np.ndarray, brightness: float) -> tuple[TargetLabel, ...]:
@@ -283,6 +361,24 @@ class Renderer:
                 cv2.fillPoly(layer, [shifted], col, cv2.LINE_AA, 4)
                 a = float(m.disc_alpha[k])
                 cv2.addWeighted(layer, a, roi, 1.0 - a, 0.0, dst=roi)
+
+
+def _rows(mask_lo: np.ndarray, height: int) -> tuple[int, int] | None:
+    """The full-size row span covering the coarse grid's rows where ``mask_lo`` holds (one cell of margin)."""
+    rows = np.flatnonzero(mask_lo.any(axis=1))
+    if rows.size == 0:
+        return None
+    return max((int(rows[0]) - 1) * _COARSE, 0), min((int(rows[-1]) + 2) * _COARSE, height)
+
+
+def _warp_into(out: np.ndarray, texture: np.ndarray, h_tex_to_img: np.ndarray, rows: tuple[int, int], border: int,
+               border_value) -> None:
+    """Warp ``texture`` by the homography into ``out``'s rows ``rows`` only."""
+    r0, r1 = rows
+    shift = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -float(r0)], [0.0, 0.0, 1.0]])
+    roi = out[r0:r1]
+    cv2.warpPerspective(texture, shift @ h_tex_to_img, (out.shape[1], r1 - r0), dst=roi, flags=cv2.INTER_LINEAR,
+                        borderMode=border, borderValue=border_value)
 
 
 def _motion_blur(img: np.ndarray, length_px: float, angle_rad: float) -> np.ndarray:

@@ -22,10 +22,16 @@ class GroundScene:
     Args:
         texture: (N, N, 3) BGR image.
         metres_per_px: ground size of one texture pixel.
+        far_texture: the texture pre-filtered and smaller (any size), drawn where the ground is far
+            enough that one image pixel covers several texture pixels; None: the texture everywhere.
+        detail: a tileable grey grain (uint8, 128 = no change) at
+            :data:`sitl.world.camera.fields.DETAIL_M_PER_PX`, modulating the near ground; None: none.
     """
 
     texture: np.ndarray
     metres_per_px: float
+    far_texture: np.ndarray | None = None
+    detail: np.ndarray | None = None
 
     @property
     def half_extent_m(self) -> float:

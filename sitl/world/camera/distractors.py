@@ -1,0 +1,130 @@
+"""Things in the sky that look like the target and are not: birds (alone and in flocks, flapping),
+distant aircraft, and specks of dirt on the lens.
+
+They are negatives: drawn into the frame, never labelled. Birds and aircraft move on closed-form
+paths in time (a circle, a straight leg), so a frame depends only on its time and the world's seed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import cv2
+import numpy as np
+
+__all__ = ["Bird", "Aircraft", "LensSpecks", "make_birds", "make_aircraft"]
+
+Projector = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]  # ENU (N, 3) -> pixels (N, 2), depth (N,)
+
+
+@dataclass(frozen=True)
+class Bird:
+    """A bird circling ``centre_enu`` at ``radius_m`` and ``speed_mps``; wings of ``span_m`` flapping at
+    ``flap_hz`` (a gull 1.2 m at 3 Hz, a crow 0.9 m at 4 Hz, a small bird 0.3 m at 10 Hz)."""
+
+    centre_enu: tuple[float, float, float]
+    radius_m: float
+    speed_mps: float
+    phase: float
+    span_m: float
+    flap_hz: float
+    colour: tuple[int, int, int]
+
+    def position(self, t: float) -> np.ndarray:
+        a = self.phase + self.speed_mps * t / max(self.radius_m, 1.0)
+        c = self.centre_enu
+        return np.array([c[0] + self.radius_m * math.cos(a), c[1] + self.radius_m * math.sin(a),
+                         c[2] + 2.0 * math.sin(0.3 * a)])
+
+    def draw(self, img: np.ndarray, project: Projector, focal_px: float, t: float) -> None:
+        a = self.phase + self.speed_mps * t / max(self.radius_m, 1.0)
+        body = self.position(t)
+        side = np.array([math.cos(a), math.sin(a), 0.0])  # along the radius: across the flight direction
+        flap = 0.7 * math.sin(2.0 * math.pi * self.flap_hz * t + 7.0 * self.phase)
+        half = 0.5 * self.span_m
+        tips = [body + half * (s * math.cos(flap) * side + np.array([0.0, 0.0, math.sin(flap)])) for s in (-1.0, 1.0)]
+        px, z = project(np.array([tips[0], body, tips[1]]))
+        if (z <= 1.0).any() or not np.isfinite(px).all() or np.abs(px).max() > 1e5:
+            return
+        width = max(int(round(0.12 * self.span_m * focal_px / z[1])), 1)
+        cv2.polylines(img, [np.round(px * 16).astype(np.int32)], False, self.colour, width, cv2.LINE_AA, 4)
+
+
+@dataclass(frozen=True)
+class Aircraft:
+    """A light aircraft far off, flying a straight leg: a small cross against the sky."""
+
+    start_enu: tuple[float, float, float]
+    velocity_enu: tuple[float, float, float]
+    span_m: float = 11.0
+    colour: tuple[int, int, int] = (70, 70, 75)
+
+    def draw(self, img: np.ndarray, project: Projector, focal_px: float, t: float) -> None:
+        p = np.asarray(self.start_enu) + t * np.asarray(self.velocity_enu)
+        v = np.asarray(self.velocity_enu, float)
+        fwd = v / max(np.linalg.norm(v), 1e-6)
+        right = np.cross(fwd, [0.0, 0.0, 1.0])
+        half = 0.5 * self.span_m
+        pts = np.array([p - half * right, p + half * right, p + 0.45 * self.span_m * fwd, p - 0.4 * self.span_m * fwd])
+        px, z = project(pts)
+        if (z <= 1.0).any() or not np.isfinite(px).all() or np.abs(px).max() > 1e5:
+            return
+        for a, b in ((0, 1), (2, 3)):
+            cv2.line(img, tuple(int(c) for c in px[a] * 16), tuple(int(c) for c in px[b] * 16), self.colour, 1, cv2.LINE_AA, 4)
+
+
+@dataclass(frozen=True)
+class LensSpecks:
+    """Dirt on the lens: soft dark spots fixed in the image (x, y, radius px, darkening 0..1)."""
+
+    spots: tuple[tuple[float, float, float, float], ...]
+
+    def draw(self, img: np.ndarray) -> None:
+        for x, y, r, dark in self.spots:
+            x0, y0 = max(int(x - 2 * r), 0), max(int(y - 2 * r), 0)
+            x1, y1 = min(int(x + 2 * r) + 1, img.shape[1]), min(int(y + 2 * r) + 1, img.shape[0])
+            if x1 <= x0 or y1 <= y0:
+                continue
+            yy, xx = np.mgrid[y0:y1, x0:x1]
+            shade = 1.0 - dark * np.exp(-((xx - x) ** 2 + (yy - y) ** 2) / (2.0 * r * r))
+            img[y0:y1, x0:x1] = (img[y0:y1, x0:x1] * shade[..., None]).astype(np.uint8)
+
+    @classmethod
+    def random(cls, rng: np.random.Generator, count: int, width: int, height: int) -> LensSpecks:
+        return cls(tuple((float(rng.uniform(0, width)), float(rng.uniform(0, height)), float(rng.uniform(1.5, 5.0)),
+                          float(rng.uniform(0.15, 0.5))) for _ in range(count)))
+
+
+def make_birds(rng: np.random.Generator, singles: int, flocks: int, half_extent_m: float) -> list[Bird]:
+    """``singles`` birds and ``flocks`` flocks of 5-25 over a field ``half_extent_m`` each way."""
+    kinds = (((1.2, 3.0), (200, 200, 205)), ((0.9, 4.0), (35, 35, 40)), ((0.3, 10.0), (50, 55, 60)))
+    birds = []
+
+    def one(centre, radius, speed, phase, k):
+        (span, hz), colour = kinds[k]
+        birds.append(Bird(tuple(float(c) for c in centre), float(radius), float(speed), float(phase),
+                          span * float(rng.uniform(0.85, 1.15)), hz * float(rng.uniform(0.8, 1.2)), colour))
+
+    for _ in range(singles):
+        centre = (*rng.uniform(-half_extent_m, half_extent_m, 2), rng.uniform(8, 90))
+        one(centre, rng.uniform(15, 120), rng.uniform(6, 14), rng.uniform(0, 2 * np.pi), int(rng.integers(3)))
+    for _ in range(flocks):
+        centre = np.array([*rng.uniform(-half_extent_m, half_extent_m, 2), rng.uniform(15, 80)])
+        radius, speed, phase, k = rng.uniform(40, 150), rng.uniform(8, 13), rng.uniform(0, 2 * np.pi), int(rng.integers(3))
+        for _ in range(int(rng.integers(5, 26))):
+            offset = rng.normal(0, 4.0, 3) * [1.0, 1.0, 0.4]
+            one(centre + offset, radius + rng.normal(0, 3.0), speed, phase + rng.normal(0, 0.03), k)
+    return birds
+
+
+def make_aircraft(rng: np.random.Generator, count: int) -> list[Aircraft]:
+    """``count`` aircraft 2-6 km out, 300-1500 m up, at 40-70 m/s."""
+    out = []
+    for _ in range(count):
+        bearing, heading = rng.uniform(0, 2 * np.pi), rng.uniform(0, 2 * np.pi)
+        d, speed = rng.uniform(2000, 6000), rng.uniform(40, 70)
+        out.append(Aircraft((d * math.cos(bearing), d * math.sin(bearing), float(rng.uniform(300, 1500))),
+                            (speed * math.cos(heading), speed * math.sin(heading), 0.0)))
+    return out

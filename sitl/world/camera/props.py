@@ -1,0 +1,71 @@
+"""Upright clutter the ground texture cannot show: poles and the power lines strung between them.
+
+Drawn by projecting their 3-D points into the frame, so they lean, shrink and cross the sky as a
+real camera sees them: thin dark lines, the kind of edge a tracker drifts onto.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import cv2
+import numpy as np
+
+__all__ = ["PowerLine", "make_power_lines"]
+
+Projector = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]  # ENU (N, 3) -> pixels (N, 2), depth (N,)
+
+
+@dataclass(frozen=True)
+class PowerLine:
+    """Poles at ``poles_enu`` (K, 2) ground points, ``height_m`` tall, ``wires`` strung pole to pole
+    with ``sag_m`` of sag at mid-span."""
+
+    poles_enu: np.ndarray
+    height_m: float = 9.0
+    wires: int = 3
+    sag_m: float = 0.8
+    colour: tuple[int, int, int] = (40, 40, 45)
+
+    def draw(self, img: np.ndarray, project: Projector, focal_px: float) -> None:
+        k = len(self.poles_enu)
+        base = np.column_stack([self.poles_enu, np.zeros(k)])
+        top = base + [0.0, 0.0, self.height_m]
+        px_b, z_b = project(base)
+        px_t, z_t = project(top)
+        for i in range(k):
+            if min(z_b[i], z_t[i]) > 1.0:
+                width = max(int(round(0.25 * focal_px / z_b[i])), 1)
+                if width <= 40:
+                    _line(img, px_b[i], px_t[i], self.colour, width)
+        spans = k - 1
+        if spans < 1:
+            return
+        s = np.linspace(0.0, 1.0, 12)
+        drop = np.array([0.0, 0.0, 1.0])
+        a = top[:-1, None, None, :] - 0.6 * np.arange(self.wires)[None, :, None, None] * drop  # (spans, wires, 1, 3)
+        b = top[1:, None, None, :] - 0.6 * np.arange(self.wires)[None, :, None, None] * drop
+        pts = a + s[None, None, :, None] * (b - a) - (4 * self.sag_m * s * (1 - s))[None, None, :, None] * drop
+        px, z = project(pts.reshape(-1, 3))
+        px, z = px.reshape(spans * self.wires, 12, 2), z.reshape(spans * self.wires, 12)
+        keep = (z > 1.0).all(axis=1) & (np.abs(px) < 1e5).all(axis=(1, 2))
+        if keep.any():
+            cv2.polylines(img, list(np.round(px[keep] * 16).astype(np.int32)), False, self.colour, 1, cv2.LINE_AA, 4)
+
+def _line(img: np.ndarray, a: np.ndarray, b: np.ndarray, colour: tuple[int, int, int], width: int) -> None:
+    if np.all(np.isfinite([a, b])) and max(np.abs(a).max(), np.abs(b).max()) < 1e5:
+        cv2.line(img, (int(a[0] * 16), int(a[1] * 16)), (int(b[0] * 16), int(b[1] * 16)), colour, width, cv2.LINE_AA, 4)
+
+
+def make_power_lines(rng: np.random.Generator, count: int, half_extent_m: float) -> list[PowerLine]:
+    """``count`` straight lines of poles 40-60 m apart across a field ``half_extent_m`` in each direction."""
+    lines = []
+    for _ in range(count):
+        start = rng.uniform(-half_extent_m, half_extent_m, 2)
+        heading = rng.uniform(0, 2 * np.pi)
+        spacing = rng.uniform(40, 60)
+        n = int(rng.integers(6, 20))
+        poles = start + np.outer(np.arange(n) * spacing, [np.cos(heading), np.sin(heading)])
+        lines.append(PowerLine(poles, height_m=float(rng.uniform(7, 12))))
+    return lines
