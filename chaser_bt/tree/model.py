@@ -33,7 +33,7 @@ MAX_DEPTH = 100
 #: BT.CPP v4's pre-condition attributes, in the order BT.CPP evaluates them.
 PRECONDITIONS = ("_failureIf", "_successIf", "_skipIf", "_while")
 
-#: BT.CPP v4's post-condition scripts, which this loader refuses (they assign to the blackboard).
+#: BT.CPP v4's post-condition scripts: run when the node succeeds, fails, finishes either way, is halted.
 POSTCONDITIONS = ("_onSuccess", "_onFailure", "_post", "_onHalted")
 
 

@@ -13,6 +13,7 @@ remaps (or all keys, with ``_autoremap: true``) reach the parent; ``{@key}`` is 
 from __future__ import annotations
 
 import enum
+import logging
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
@@ -23,7 +24,7 @@ from py_trees.ports_utils import sanitize_name_for_blackboard_use
 from chaser_bt.tree.control import SubTree
 from chaser_bt.tree.errors import Problem, UnknownNode
 from chaser_bt.tree.expressions import ExpressionError, parse_expression
-from chaser_bt.tree.model import MAX_DEPTH, PRECONDITIONS, SUBTREE_ID, Location, NodeSpec, PortArg, TreeDocument
+from chaser_bt.tree.model import MAX_DEPTH, POSTCONDITIONS, PRECONDITIONS, SUBTREE_ID, Location, NodeSpec, PortArg, TreeDocument
 from chaser_bt.tree.ports import (
     SAME_AS_PORT,
     LiteralError,
@@ -38,6 +39,8 @@ from chaser_bt.tree.registry import NodeKind, NodeType, Registry
 
 __all__ = ["ResolvedNode", "Resolution", "resolve_document", "typed_literal", "SUBTREE_TYPE"]
 
+logger = logging.getLogger(__name__)
+
 #: The node type of a SubTree instance (a pass-through wrapper around the instantiated tree).
 SUBTREE_TYPE = NodeType(SUBTREE_ID, SubTree, NodeKind.DECORATOR)
 
@@ -50,7 +53,8 @@ class ResolvedNode:
         remappings: port -> absolute blackboard key (``{key}`` references and default keys).
         literals: port -> typed value, stored on the blackboard privately for that node.
         wiring: port -> how a person reads it ("20", "{/alt}"), for display.
-        conditions: BT.CPP pre-conditions, in BT.CPP's order of evaluation.
+        conditions: BT.CPP pre-conditions, in BT.CPP's order of evaluation, then post-conditions.
+        scripts: port -> the script a script port (``Script``'s ``code``) holds, bound to the blackboard.
     """
 
     node_type: NodeType
@@ -62,6 +66,7 @@ class ResolvedNode:
     wiring: dict[str, str] = field(default_factory=dict)
     children: list[ResolvedNode] = field(default_factory=list)
     conditions: list[Condition] = field(default_factory=list)
+    scripts: dict[str, Condition] = field(default_factory=dict)
 
 
 @dataclass
@@ -231,30 +236,38 @@ class _Resolver:
         return resolved
 
     def conditions(self, spec: NodeSpec, scope: _Scope) -> list[Condition]:
-        """Parse the node's pre-conditions; their variables resolve in the node's own scope, as its ports do."""
+        """Parse the node's pre- and post-conditions; their names resolve in the node's own scope, as its ports do."""
         conditions = []
-        for kind in PRECONDITIONS:
+        for kind in (*PRECONDITIONS, *POSTCONDITIONS):
             arg = spec.conditions.get(kind)
-            if arg is None:
-                continue
-            try:
-                expression = parse_expression(str(arg.value))
-            except ExpressionError as e:
-                self.problem(arg.value_at, f"{kind} of {spec.node_id}: {e}")
-                continue
-            bindings: dict[str, str | Constant] = {}
-            for variable in expression.variables:
-                binding = scope.resolve(variable)
-                if isinstance(binding, _Literal):
-                    value = binding.value
-                    if binding.from_text and isinstance(value, str):
-                        value = literal_from_text(value, object)
-                    bindings[variable] = Constant(value)
-                else:
-                    bindings[variable] = binding
-                    self.reads.append(_Read(binding, arg.value_at, f"{kind} of {spec.node_id}"))
-            conditions.append(Condition(kind, expression, bindings))
+            if arg is not None:
+                script = self.script(kind, str(arg.value), arg.value_at, scope, f"{kind} of {spec.node_id}")
+                if script is not None:
+                    conditions.append(script)
         return conditions
+
+    def script(self, kind: str, text: str, location: Location, scope: _Scope, what: str) -> Condition | None:
+        """A BT.CPP script bound to the blackboard keys of ``scope`` (None, with a problem, when malformed)."""
+        try:
+            expression = parse_expression(text, self.registry.scripting_enums)
+        except ExpressionError as e:
+            self.problem(location, f"{what}: {e}")
+            return None
+        bindings: dict[str, str | Constant] = {}
+        for variable in expression.variables:
+            binding = scope.resolve(variable)
+            if isinstance(binding, _Literal):
+                value = binding.value
+                if binding.from_text and isinstance(value, str):
+                    value = literal_from_text(value, object)
+                bindings[variable] = Constant(value)
+            else:
+                bindings[variable] = binding
+                if variable in expression.assigned:
+                    self.writes.add(binding)
+                else:
+                    self.reads.append(_Read(binding, location, what))
+        return Condition(kind, expression, bindings)
 
     def plain_node(self, spec: NodeSpec, scope: _Scope, stack: tuple[str, ...]) -> ResolvedNode | None:
         if spec.node_id == SUBTREE_ID:
@@ -295,6 +308,17 @@ class _Resolver:
             self.problem(arg.location, f"{spec.node_id} has no port '{port}'; {listed}")
             return
         is_output = port in node_type.output_ports
+        if port in getattr(node_type.cls, "SCRIPT_PORTS", ()) and not is_reference_text(arg.value):
+            script = self.script(port, str(arg.value), arg.value_at, scope, f"port '{port}' of {spec.node_id}")
+            if script is not None:
+                resolved.scripts[port] = script
+                resolved.literals[port] = str(arg.value)
+                resolved.wiring[port] = repr(str(arg.value))
+            return
+        if port in getattr(node_type.cls, "KEY_NAME_PORTS", ()):
+            arg = self.key_name(spec, port, arg)
+            if arg is None:
+                return
         if not is_reference_text(arg.value):
             if is_output:
                 self.problem(
@@ -325,6 +349,26 @@ class _Resolver:
             self.writes.add(binding)
         elif declaration.required and not declaration.has_default:
             self.reads.append(_Read(binding, arg.value_at, f"port '{port}' of {spec.node_id}"))
+
+    def key_name(self, spec: NodeSpec, port: str, arg: PortArg) -> PortArg | None:
+        """A port whose value names a blackboard entry (BT.CPP's ``SetBlackboard output_key="x"``), as a reference.
+
+        The old chaser-bt form ``output_key="{x}"`` still loads, with a warning saying how to fix it
+        (BT.CPP would read entry x's *value* as the name, and fail).
+        """
+        text = str(arg.value).strip()
+        if is_reference_text(text):
+            where = arg.value_at
+            logger.warning(
+                "%s:%d:%d: %s %s=%r is the old form: BehaviorTree.CPP reads the text as the entry's name, "
+                "write %s=%r",
+                where.file, where.line, where.column, spec.node_id, port, text, port, text.strip("{}"),
+            )
+            return arg
+        if not text:
+            self.problem(arg.value_at, f"port '{port}' of {spec.node_id} needs the name of a blackboard entry")
+            return None
+        return PortArg("{" + text + "}", arg.location, arg.value_location, from_text=False)
 
     def literal(
         self,
@@ -440,9 +484,13 @@ class _Resolver:
                         continue
                     if not key.startswith("@"):
                         yield port if key == SAME_AS_PORT else key
-            for arg in node.conditions.values():
+            scripts = list(node.conditions.values())
+            if node.node_id in self.registry:
+                script_ports = getattr(self.registry.get(node.node_id).cls, "SCRIPT_PORTS", ())
+                scripts += [arg for port, arg in node.ports.items() if port in script_ports]
+            for arg in scripts:
                 try:
-                    variables = parse_expression(str(arg.value)).variables
+                    variables = parse_expression(str(arg.value), self.registry.scripting_enums).variables
                 except ExpressionError:
                     continue
                 yield from (v for v in variables if not v.startswith("@"))

@@ -278,17 +278,15 @@ class _Parser:
             where = self.src.attribute_at(element, name)
             if name == "name":
                 spec.name = value or None
-            elif name in PRECONDITIONS:
+            elif name in PRECONDITIONS or name in POSTCONDITIONS:
                 if value.strip():
                     spec.conditions[name] = PortArg(value, where)
                 else:
-                    self.problem(where, f"{name} needs a blackboard expression")
-            elif name in POSTCONDITIONS:
-                self.problem(where, f"post-condition {name} is not supported: write the assignment as a node")
+                    self.problem(where, f"{name} needs a script")
             elif name in _EDITOR_ATTRIBUTES:
                 continue
             elif name.startswith("_"):
-                known = ", ".join((*PRECONDITIONS, *(("_autoremap",) if node_id == SUBTREE_ID else ())))
+                known = ", ".join((*PRECONDITIONS, *POSTCONDITIONS, *(("_autoremap",) if node_id == SUBTREE_ID else ())))
                 self.problem(where, f"unknown special attribute '{name}' (BT.CPP's are {known})")
             else:
                 spec.ports[name] = PortArg(value, where, from_text=True)

@@ -72,6 +72,8 @@ class Scripted(py_trees.ports.BehaviourWithPorts, register=False):
 def registry() -> Registry:
     registry = Registry.with_control_nodes()
     registry.register(Scripted)
+    for value, name in enumerate(("RED", "GREEN", "BLUE"), 1):  # as the harness registers them
+        registry.register_scripting_enum(name, value)
     return registry
 
 
