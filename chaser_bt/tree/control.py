@@ -37,6 +37,8 @@ from chaser_bt.tree.decorators import (
     LoopInt,
     LoopString,
     Precondition,
+    SkipUnlessUpdated,
+    WaitValueUpdate,
     Delay,
     ForceFailure,
     ForceSuccess,
@@ -49,6 +51,7 @@ from chaser_bt.tree.decorators import (
     Timeout,
 )
 from chaser_bt.tree.node_base import ControlPorts as _ControlPorts
+from chaser_bt.tree.entry_versions import entry_version
 from chaser_bt.tree.expressions import truth
 from chaser_bt.tree.node_base import PortCheck, now, require_clock
 from chaser_bt.tree.node_kind import NodeKind
@@ -81,6 +84,9 @@ __all__ = [
     "Script",
     "ScriptCondition",
     "Sleep",
+    "WasEntryUpdated",
+    "SkipUnlessUpdated",
+    "WaitValueUpdate",
     "CONTROL_NODES",
     "PortCheck",
 ]
@@ -167,6 +173,29 @@ class UnsetBlackboard(_ControlPorts, py_trees.behaviour.Behaviour, register=Fals
     def update(self) -> Status:
         py_trees.blackboard.Blackboard.unset(self._get_blackboard_key("key"))
         return Status.SUCCESS
+
+
+class WasEntryUpdated(_ControlPorts, py_trees.behaviour.Behaviour, register=False):
+    """BT.CPP WasEntryUpdated: SUCCESS if the entry named by ``entry`` was written since this node last looked, else FAILURE."""
+
+    KEY_NAME_PORTS: ClassVar[tuple[str, ...]] = ("entry",)
+    BRACES_ARE_OLD_FORM: ClassVar[bool] = False
+    NODE_KIND = NodeKind.CONDITION
+    INPUT_PORTS: ClassVar[dict[str, Port]] = {}
+    OUTPUT_PORTS: ClassVar[dict[str, Port]] = {
+        "entry": Port(data_type=object, required=True, description="name of the blackboard entry to watch"),
+    }
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name=name)
+        self._seen = 0
+
+    def update(self) -> Status:
+        version = entry_version(self._get_blackboard_key("entry"))
+        if version is None:
+            return Status.FAILURE
+        previous, self._seen = self._seen, version
+        return Status.SUCCESS if version != previous else Status.FAILURE
 
 
 class Script(_ControlPorts, py_trees.behaviour.Behaviour, register=False):
@@ -261,4 +290,7 @@ CONTROL_NODES: tuple[type, ...] = (
     ScriptCondition,
     Sleep,
     UnsetBlackboard,
+    WasEntryUpdated,
+    SkipUnlessUpdated,
+    WaitValueUpdate,
 )

@@ -17,6 +17,7 @@ import py_trees
 from py_trees.common import Status
 
 from chaser_bt.mission.clock import Clock
+from chaser_bt.tree.entry_versions import entry_version
 from chaser_bt.tree.node_base import ControlPorts, PortCheck, SKIPPED, Steps, check_count, now, require_clock
 from chaser_bt.tree.ports import Port, input_port, output_port
 
@@ -32,6 +33,8 @@ __all__ = [
     "RunOnce",
     "KeepRunningUntilFailure",
     "Precondition",
+    "SkipUnlessUpdated",
+    "WaitValueUpdate",
     "LoopInt",
     "LoopBool",
     "LoopDouble",
@@ -297,6 +300,53 @@ class Precondition(DecoratorNode, register=False):
 
 
 _STATUS_NAMES = {"SUCCESS": Status.SUCCESS, "FAILURE": Status.FAILURE, "SKIPPED": SKIPPED, "RUNNING": Status.RUNNING}
+
+
+class _EntryUpdated(DecoratorNode, register=False):
+    """Ticks the child only if the entry named by ``entry`` was written since this node last looked (BT.CPP's EntryUpdatedDecorator)."""
+
+    KEY_NAME_PORTS: ClassVar[tuple[str, ...]] = ("entry",)
+    BRACES_ARE_OLD_FORM: ClassVar[bool] = False
+    INPUT_PORTS: ClassVar[dict[str, Port]] = {}
+    OUTPUT_PORTS: ClassVar[dict[str, Port]] = {
+        "entry": Port(data_type=object, required=True, description="name of the blackboard entry to watch"),
+    }
+    #: What the decorator returns when the entry was not updated.
+    IF_NOT_UPDATED: ClassVar[Status]
+
+    def __init__(self, name: str, child: Behaviour) -> None:
+        super().__init__(name=name, child=child)
+        self._seen = 0
+        self._child_running = False
+
+    def step(self) -> Steps:
+        if not self._child_running:
+            version = entry_version(self._get_blackboard_key("entry"))
+            previous = self._seen
+            if version is not None:
+                self._seen = version
+            if version is None or version == previous:
+                return self.IF_NOT_UPDATED
+        status = yield from super().step()
+        self._child_running = status == Status.RUNNING
+        return status
+
+    def stop(self, new_status: Status = Status.INVALID) -> None:
+        if new_status == Status.INVALID:
+            self._child_running = False
+        super().stop(new_status)
+
+
+class SkipUnlessUpdated(_EntryUpdated, register=False):
+    """BT.CPP SkipUnlessUpdated: SKIPPED unless ``entry`` was written since the last look; then ticks the child."""
+
+    IF_NOT_UPDATED = SKIPPED
+
+
+class WaitValueUpdate(_EntryUpdated, register=False):
+    """BT.CPP WaitValueUpdate: RUNNING until ``entry`` is written; then ticks the child."""
+
+    IF_NOT_UPDATED = Status.RUNNING
 
 
 class Loop(DecoratorNode, register=False):

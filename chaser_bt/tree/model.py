@@ -92,6 +92,8 @@ class NodeSpec:
     subtree: SubTreeRef | None = None
     unreadable_children: int = field(default=0, compare=False)
     conditions: dict[str, PortArg] = field(default_factory=dict)
+    #: The XML element it was written as when that was the explicit form (``Action``, ``Condition``...).
+    explicit_tag: str | None = field(default=None, compare=False)
 
     @property
     def display_name(self) -> str:
@@ -123,3 +125,6 @@ class TreeDocument:
     inputs: list[PortArg] = field(default_factory=list)
     trees: dict[str, TreeSpec] = field(default_factory=dict)
     includes: list[PortArg] = field(default_factory=list)
+    #: Port defaults of ``<SubTree>`` entries in a ``<TreeNodesModel>`` (Groot2 writes them), by
+    #: tree id: BT.CPP uses each as the remapping when a SubTree node leaves that port out.
+    subtree_defaults: dict[str, dict[str, PortArg]] = field(default_factory=dict)

@@ -125,7 +125,8 @@ class _Scope:
             return "/" + key[1:]
         if key in self.bindings:
             return self.bindings[key]
-        if self.autoremap and self.parent is not None:
+        # _autoremap passes every key through but the private ones (``_name``), as BT.CPP does.
+        if self.autoremap and self.parent is not None and not key.startswith("_"):
             return self.parent.resolve(key)
         return py_trees.blackboard.Blackboard.absolute_name(self.namespace, key)
 
@@ -288,6 +289,14 @@ class _Resolver:
         return resolved
 
     def check_children(self, spec: NodeSpec, node_type: NodeType) -> None:
+        if spec.node_id == "ReactiveSequence":
+            for child in spec.children:
+                if child.explicit_tag is not None:
+                    self.problem(
+                        child.location,
+                        f"BehaviorTree.CPP 4.10 cannot load <{child.explicit_tag} ID=\"{child.node_id}\"> directly under "
+                        f"a ReactiveSequence (it looks the tag up as a node id): write <{child.node_id} .../>",
+                    )
         if spec.unreadable_children:
             return
         count = len(spec.children)
@@ -316,7 +325,7 @@ class _Resolver:
                 resolved.wiring[port] = repr(str(arg.value))
             return
         if port in getattr(node_type.cls, "KEY_NAME_PORTS", ()):
-            arg = self.key_name(spec, port, arg)
+            arg = self.key_name(spec, port, arg, getattr(node_type.cls, "BRACES_ARE_OLD_FORM", True))
             if arg is None:
                 return
         if not is_reference_text(arg.value):
@@ -350,13 +359,15 @@ class _Resolver:
         elif declaration.required and not declaration.has_default:
             self.reads.append(_Read(binding, arg.value_at, f"port '{port}' of {spec.node_id}"))
 
-    def key_name(self, spec: NodeSpec, port: str, arg: PortArg) -> PortArg | None:
+    def key_name(self, spec: NodeSpec, port: str, arg: PortArg, braces_are_old_form: bool = True) -> PortArg | None:
         """A port whose value names a blackboard entry (BT.CPP's ``SetBlackboard output_key="x"``), as a reference.
 
         The old chaser-bt form ``output_key="{x}"`` still loads, with a warning saying how to fix it
         (BT.CPP would read entry x's *value* as the name, and fail).
         """
         text = str(arg.value).strip()
+        if is_reference_text(text) and not braces_are_old_form:
+            return arg
         if is_reference_text(text):
             where = arg.value_at
             logger.warning(
@@ -442,7 +453,9 @@ class _Resolver:
         self.instantiated.add(ref.tree_id)
         used = set(self.keys_used(ref.tree_id, set()))
         bindings: dict[str, _Binding] = {}
-        for port, arg in spec.ports.items():
+        defaults = self.document.subtree_defaults.get(ref.tree_id, {})
+        ports = {**{p: a for p, a in defaults.items() if p in used}, **spec.ports}
+        for port, arg in ports.items():
             if port not in used:
                 listed = ", ".join(sorted(used)) or "none"
                 self.problem(arg.location, f"SubTree '{ref.tree_id}' uses no key '{port}'; its keys: {listed}")
