@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from conformance.trace import HERE, chaser_trace, golden_trace, registry
-from chaser_bt.tree import validate_tree
+from conformance.trace import HERE, chaser_trace, golden_trace, registry, stub_registry, stub_trace
+from chaser_bt.tree import default_registry, validate_tree
 
 TREES = sorted((HERE / "trees").glob("*.xml"))
 BAD = sorted((HERE / "bad").glob("*.xml"))
@@ -94,3 +94,10 @@ def test_shipped_tree_loads_and_ticks_in_btcpp(golden: Path) -> None:
     lines = golden.read_text().splitlines()
     assert lines and lines[0].startswith("tick 1 "), lines[:3]
     assert not any(line.endswith(" exception") for line in lines if line.startswith("tick ")), lines
+
+
+@pytest.mark.parametrize("golden", sorted(SHIPPED.glob("*.trace")), ids=lambda p: p.stem)
+def test_shipped_tree_ticks_with_stubs_as_in_btcpp(golden: Path) -> None:
+    """chaser-bt ticks the shipped tree, with the same stub leaves, exactly as BT.CPP 4.10 did."""
+    tree = REPO / "trees" / (golden.stem.replace("__", "/") + ".xml")
+    assert stub_trace(tree, stub_registry(default_registry())) == golden_trace(golden)

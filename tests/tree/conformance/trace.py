@@ -128,3 +128,74 @@ def chaser_trace(path: Path) -> list[str]:
 def golden_trace(golden: Path) -> list[str]:
     """The golden's compared lines (without the '#' information lines)."""
     return [line for line in golden.read_text(encoding="utf-8").splitlines() if not line.startswith("#")]
+
+
+#: The ids BehaviorTree.CPP 4.10's factory registers by default (``bt_factory.cpp``), SubTree aside.
+BTCPP_BUILTINS = frozenset(
+    """Fallback AsyncFallback Sequence AsyncSequence SequenceWithMemory Parallel ParallelAll
+    ReactiveSequence ReactiveFallback IfThenElse WhileDoElse TryCatch Inverter RetryUntilSuccessful
+    KeepRunningUntilFailure Repeat Timeout Delay RunOnce ForceSuccess ForceFailure AlwaysSuccess
+    AlwaysFailure Script ScriptCondition SetBlackboard Sleep UnsetBlackboard Precondition Switch2
+    Switch3 Switch4 Switch5 Switch6 LoopInt LoopBool LoopDouble LoopString WasEntryUpdated
+    SkipUnlessUpdated WaitValueUpdate""".split()
+)
+
+
+def stub_registry(source: Registry) -> Registry:
+    """``source``'s nodes, with every one BT.CPP does not provide replaced by a stub, as the harness's ``stubs`` mode does.
+
+    Leaves record ``name ID`` and succeed; decorators pass their child's status through.
+    """
+    from chaser_bt.tree.decorators import DecoratorNode
+    from chaser_bt.tree.registry import NodeKind
+
+    registry = Registry.with_control_nodes()
+    for node_id, node_type in source.specs.items():
+        if node_id in BTCPP_BUILTINS or node_id in registry:
+            continue
+        ports = {"INPUT_PORTS": dict(node_type.input_ports), "OUTPUT_PORTS": dict(node_type.output_ports)}
+        if node_type.kind is NodeKind.DECORATOR:
+            cls = type(node_id, (DecoratorNode,), ports, register=False)
+        else:
+            cls = type(node_id, (_StubLeaf,), {**ports, "NODE_ID": node_id, "NODE_KIND": node_type.kind}, register=False)
+        registry.register(cls, node_id)
+    registry._types.pop("Wait", None)  # chaser-bt's own: BT.CPP sees a stub
+    registry.register(type("Wait", (_StubLeaf,), {"INPUT_PORTS": dict(source.get("Wait").input_ports),
+                                                   "OUTPUT_PORTS": {}, "NODE_ID": "Wait"}, register=False), "Wait")
+    return registry
+
+
+class _StubLeaf(py_trees.ports.BehaviourWithPorts, register=False):
+    INPUT_PORTS: dict = {}
+    OUTPUT_PORTS: dict = {}
+    NODE_ID = ""
+
+    def setup(self, **kwargs: Any) -> None:
+        self.events: list[str] = kwargs["events"]
+
+    def update(self) -> Status:
+        self.events.append(f"{self.name} {self.NODE_ID}")
+        return Status.SUCCESS
+
+
+def stub_trace(path: Path, registry: Registry, ticks: int = 5) -> list[str]:
+    """Tick a shipped tree with stub leaves as the harness's ``stubs`` mode does."""
+    reset_blackboard()
+    try:
+        tree = load_tree(path, registry)
+    except TreeError:
+        return ["load error"]
+    events: list[str] = []
+    py_trees.trees.setup(tree.root, clock=ManualClock(0.0), events=events)
+    lines: list[str] = []
+    for n in range(1, ticks + 1):
+        try:
+            tree.root.tick_once()
+        except Exception:
+            lines.append(f"tick {n} exception")
+            lines.extend(f"  {e}" for e in events)
+            return lines
+        lines.append(f"tick {n} {_NAMES[tree.root.status]}")
+        lines.extend(f"  {e}" for e in events)
+        events.clear()
+    return lines
