@@ -49,7 +49,7 @@ class Environment(Protocol):
 
 _TOKEN = re.compile(
     r"\s*(?:"
-    r"(?P<number>0[xX][0-9a-fA-F]+|\d+\.\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?|\d+(?:[eE][+-]?\d+)?)"
+    r"(?P<number>0[xX][0-9a-fA-F]+|\d+\.\d*(?:[eE][+-]?\d+)?|\d+(?:[eE][+-]?\d+)?)"
     r"|(?P<string>'[^']*'|\"[^\"]*\")"
     r"|(?P<name>@?[A-Za-z_][A-Za-z0-9_]*)"
     r"|(?P<op>:=|\+=|-=|\*=|/=|&&|\|\||==|!=|<=|>=|\.\.|[-+*/<>!~&|^?:()=;])"
@@ -283,7 +283,9 @@ def _string_number(value: str) -> float:
 
 
 def truth(value: Any) -> bool:
-    """BT.CPP's ``cast<bool>()``: a number is true when non-zero; 'true'/'false' as text."""
+    """BT.CPP's ``cast<bool>()``: a real is true when non-zero, an integer must be 0 or 1; 'true'/'false' as text."""
+    if isinstance(value, int) and not isinstance(value, bool) and value not in (0, 1):
+        raise ExpressionError(f"{value!r} is not castable to bool (an integer must be 0 or 1)")
     number = _number(value)
     if number is not None:
         return number != 0.0
@@ -342,10 +344,9 @@ def _binary(op: str, a: Any, b: Any) -> Any:
         if op in ("&", "|", "^"):
             i, j = _integer(x), _integer(y)
             return float({"&": i & j, "|": i | j, "^": i ^ j}[op])
-        if op == "&&":
-            return float(x != 0.0 and y != 0.0)
-        if op == "||":
-            return float(x != 0.0 or y != 0.0)
+        if op in ("&&", "||"):
+            left, right = truth(a), truth(b)  # both cast, as BT.CPP does
+            return float(left and right) if op == "&&" else float(left or right)
     if isinstance(a, str) and isinstance(b, str) and op == "+":
         return a + b
     if op == ".." and (isinstance(a, str) or isinstance(b, str)) and (x is not None or isinstance(a, str)) and (
