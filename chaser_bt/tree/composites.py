@@ -28,7 +28,7 @@ from typing import Any, ClassVar
 import py_trees
 from py_trees.common import Status
 
-from chaser_bt.tree.node_base import ControlPorts, PortCheck, SKIPPED, Steps, halt
+from chaser_bt.tree.node_base import ControlPorts, PortCheck, SKIPPED, Steps, halt, is_active
 from chaser_bt.tree.ports import Port, input_port
 
 __all__ = [
@@ -98,7 +98,7 @@ class ControlNode(ControlPorts, py_trees.composites.Composite, register=False):
 
     def stop(self, new_status: Status = Status.INVALID) -> None:
         for child in self.children:
-            if child.status == Status.RUNNING:
+            if is_active(child):
                 child.stop(Status.INVALID)
         if new_status == Status.INVALID:
             self.halted()
@@ -113,7 +113,7 @@ class ControlNode(ControlPorts, py_trees.composites.Composite, register=False):
     def halt_from(self, index: int) -> None:
         """Halt every RUNNING child from ``index`` on."""
         for child in self.children[index:]:
-            if child.status == Status.RUNNING:
+            if is_active(child):
                 child.stop(Status.INVALID)
 
 
@@ -145,7 +145,7 @@ class Sequence(ControlNode, register=False):
     def step(self) -> Steps:
         while self.index < len(self.children):
             child = self.children[self.index]
-            was_running = child.status == Status.RUNNING
+            was_running = is_active(child)
             status = yield from self.tick_child(child)
             self.all_skipped &= status == SKIPPED
             if status == Status.RUNNING:
@@ -242,7 +242,7 @@ class Fallback(ControlNode, register=False):
     def step(self) -> Steps:
         while self.index < len(self.children):
             child = self.children[self.index]
-            was_running = child.status == Status.RUNNING
+            was_running = is_active(child)
             status = yield from self.tick_child(child)
             self.all_skipped &= status == SKIPPED
             if status == Status.RUNNING:
@@ -608,5 +608,5 @@ class WhileDoElse(ControlNode, register=False):
 
 
 def halt_running(node: Behaviour) -> None:
-    if node.status == Status.RUNNING:
+    if is_active(node):
         node.stop(Status.INVALID)

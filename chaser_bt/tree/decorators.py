@@ -18,7 +18,7 @@ from py_trees.common import Status
 
 from chaser_bt.mission.clock import Clock
 from chaser_bt.tree.entry_versions import entry_version
-from chaser_bt.tree.node_base import ControlPorts, PortCheck, SKIPPED, Steps, check_count, now, require_clock
+from chaser_bt.tree.node_base import ControlPorts, PortCheck, SKIPPED, Steps, check_count, is_active, now, require_clock
 from chaser_bt.tree.ports import Port, input_port, output_port
 
 __all__ = [
@@ -46,14 +46,27 @@ Behaviour = py_trees.behaviour.Behaviour
 
 
 class DecoratorNode(ControlPorts, py_trees.decorators.Decorator, register=False):
-    """A decorator whose :meth:`step` decides when to tick the child and returns the new status."""
+    """A decorator whose :meth:`step` decides when to tick the child and returns the new status.
+
+    When it returns SKIPPED (its child was skipped) it keeps its state, ``suspended``, as a BT.CPP
+    decorator stays RUNNING: the next tick resumes (a Repeat's count, a Delay's timer), a halt
+    resets it (:func:`~chaser_bt.tree.node_base.is_active`).
+    """
+
+    #: Keep the run's state when the decorator returns SKIPPED (BT.CPP's decorators do).
+    KEEPS_STATE_WHEN_SKIPPED: ClassVar[bool] = True
+    suspended = False
 
     def tick(self) -> Iterator[Behaviour]:
-        if self.status != Status.RUNNING:
+        if self.status != Status.RUNNING and not self.suspended:
             self.initialise()
+        self.suspended = False
         new_status = yield from self.step()
         if new_status == Status.RUNNING:
             self.status = Status.RUNNING
+        elif new_status == SKIPPED and self.KEEPS_STATE_WHEN_SKIPPED and not is_active(self.decorated):
+            self.status = SKIPPED
+            self.suspended = True
         else:
             self.stop(new_status)
         yield self
@@ -70,8 +83,9 @@ class DecoratorNode(ControlPorts, py_trees.decorators.Decorator, register=False)
         # Halt a running child; reset a finished one on a halt. A child that never ran is left
         # alone, so it sees no spurious terminate().
         self.terminate(new_status)
+        self.suspended = False
         child = self.decorated
-        if child.status == Status.RUNNING or (new_status == Status.INVALID and child.status != Status.INVALID):
+        if is_active(child) or (new_status == Status.INVALID and child.status != Status.INVALID):
             child.stop(Status.INVALID)
         self.status = new_status
         self.iterator = self.tick()
@@ -137,7 +151,7 @@ class _LoopingDecorator(DecoratorNode, register=False):
     def step(self) -> Steps:
         new_status = Status.SUCCESS if self.AGAIN_ON == Status.SUCCESS else Status.FAILURE
         while self._limit == -1 or self.rounds < self._limit:
-            was_running = self.decorated.status == Status.RUNNING
+            was_running = is_active(self.decorated)
             yield from self.decorated.tick()
             child_status = self.decorated.status
             if child_status != self.AGAIN_ON:

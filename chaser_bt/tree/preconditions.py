@@ -30,7 +30,7 @@ from py_trees.common import Status
 from chaser_bt.tree.decorators import DecoratorNode
 from chaser_bt.tree.expressions import Expression, ExpressionError
 from chaser_bt.tree.model import PRECONDITIONS
-from chaser_bt.tree.node_base import SKIPPED
+from chaser_bt.tree.node_base import SKIPPED, is_active
 
 __all__ = ["BlackboardEnv", "Condition", "Constant", "Preconditions"]
 
@@ -93,6 +93,9 @@ class Condition:
 class Preconditions(DecoratorNode, register=False):
     """Checks BT.CPP pre-conditions before (and, for ``_while``, during) its node's run; runs its post-conditions."""
 
+    #: A node its pre-condition skipped keeps BT.CPP's IDLE: no state to keep here.
+    KEEPS_STATE_WHEN_SKIPPED = False
+
     def __init__(self, name: str, child: py_trees.behaviour.Behaviour, conditions: list[Condition]) -> None:
         super().__init__(name=name, child=child)
         self.conditions = [c for c in conditions if c.kind in PRECONDITIONS]
@@ -100,7 +103,7 @@ class Preconditions(DecoratorNode, register=False):
 
     def step(self) -> Generator[py_trees.behaviour.Behaviour, None, Status]:
         try:
-            verdict = self._verdict(self.decorated.status == Status.RUNNING)
+            verdict = self._verdict(is_active(self.decorated))
         except ExpressionError as e:
             logger.warning("%s: pre-condition cannot be evaluated: %s", self.name, e)
             self.feedback_message = f"pre-condition error: {e}"
@@ -120,7 +123,7 @@ class Preconditions(DecoratorNode, register=False):
             script.run()
 
     def stop(self, new_status: Status = Status.INVALID) -> None:
-        halted = new_status == Status.INVALID and self.decorated.status == Status.RUNNING
+        halted = new_status == Status.INVALID and is_active(self.decorated)
         super().stop(new_status)
         if halted:
             self._post("_onHalted")
