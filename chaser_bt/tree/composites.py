@@ -21,14 +21,21 @@ from __future__ import annotations
 
 import abc
 import enum
-
 from collections.abc import Iterator, Mapping
 from typing import Any, ClassVar
 
 import py_trees
 from py_trees.common import Status
 
-from chaser_bt.tree.node_base import ControlPorts, PortCheck, SKIPPED, Steps, halt, is_active
+from chaser_bt.tree.expressions import number_text
+from chaser_bt.tree.node_base import (
+    SKIPPED,
+    ControlPorts,
+    PortCheck,
+    Steps,
+    halt,
+    is_active,
+)
 from chaser_bt.tree.ports import Port, input_port
 
 __all__ = [
@@ -509,8 +516,6 @@ def _input_or_none(node: ControlNode, port: str) -> Any:
 
 def _same_text(variable: Any, case: str) -> bool:
     """BT.CPP's CheckStringEquality: equal as text, or as numbers when both read as numbers."""
-    from chaser_bt.tree.expressions import number_text
-
     text = variable.name if isinstance(variable, enum.Enum) else variable
     if isinstance(text, (int, float)) and not isinstance(text, bool):
         text = number_text(float(text))
@@ -526,7 +531,9 @@ def _same_text(variable: Any, case: str) -> bool:
 def _make_switches() -> tuple[type[Switch], ...]:
     made = []
     for cases in range(2, 7):
-        cls = type(f"Switch{cases}", (Switch,), {"CASES": cases, "__doc__": f"BT.CPP Switch{cases}: {cases} cases and a default child.", "__module__": __name__}, register=False)
+        doc = f"BT.CPP Switch{cases}: {cases} cases and a default child."
+        namespace = {"CASES": cases, "__doc__": doc, "__module__": __name__}
+        cls = type(f"Switch{cases}", (Switch,), namespace, register=False)
         made.append(cls)
     return tuple(made)
 

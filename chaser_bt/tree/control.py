@@ -20,39 +20,39 @@ from chaser_bt.tree.composites import (
     SWITCHES,
     AsyncFallback,
     AsyncSequence,
-    ParallelAll,
-    TryCatch,
     Fallback,
     IfThenElse,
     Parallel,
+    ParallelAll,
     ReactiveFallback,
     ReactiveSequence,
     Sequence,
     SequenceWithMemory,
+    TryCatch,
     WhileDoElse,
 )
 from chaser_bt.tree.decorators import (
-    LoopBool,
-    LoopDouble,
-    LoopInt,
-    LoopString,
-    Precondition,
-    SkipUnlessUpdated,
-    WaitValueUpdate,
     Delay,
     ForceFailure,
     ForceSuccess,
     Inverter,
     KeepRunningUntilFailure,
+    LoopBool,
+    LoopDouble,
+    LoopInt,
+    LoopString,
+    Precondition,
     Repeat,
     RetryUntilSuccessful,
     RunOnce,
+    SkipUnlessUpdated,
     SubTree,
     Timeout,
+    WaitValueUpdate,
 )
-from chaser_bt.tree.node_base import ControlPorts as _ControlPorts
 from chaser_bt.tree.entry_versions import entry_version
 from chaser_bt.tree.expressions import truth
+from chaser_bt.tree.node_base import ControlPorts as _ControlPorts
 from chaser_bt.tree.node_base import PortCheck, now, require_clock
 from chaser_bt.tree.node_kind import NodeKind
 from chaser_bt.tree.ports import Port, input_port

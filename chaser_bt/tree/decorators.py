@@ -18,7 +18,17 @@ from py_trees.common import Status
 
 from chaser_bt.mission.clock import Clock
 from chaser_bt.tree.entry_versions import entry_version
-from chaser_bt.tree.node_base import ControlPorts, PortCheck, SKIPPED, Steps, check_count, is_active, now, require_clock
+from chaser_bt.tree.expressions import truth
+from chaser_bt.tree.node_base import (
+    SKIPPED,
+    ControlPorts,
+    PortCheck,
+    Steps,
+    check_count,
+    is_active,
+    now,
+    require_clock,
+)
 from chaser_bt.tree.ports import Port, input_port, output_port
 
 __all__ = [
@@ -267,7 +277,7 @@ class RunOnce(DecoratorNode, register=False):
 
 
 class KeepRunningUntilFailure(DecoratorNode, register=False):
-    """BT.CPP KeepRunningUntilFailure: RUNNING while the child succeeds (restarting it each tick) or is skipped; FAILURE when it fails."""
+    """BT.CPP KeepRunningUntilFailure: RUNNING while the child succeeds (restarted each tick) or is skipped, else FAILURE."""
 
     def step(self) -> Steps:
         status = yield from super().step()
@@ -275,7 +285,7 @@ class KeepRunningUntilFailure(DecoratorNode, register=False):
 
 
 class Precondition(DecoratorNode, register=False):
-    """BT.CPP Precondition: ticks the child while the script ``if`` holds (checked until the child runs), else returns ``else``."""
+    """BT.CPP Precondition: ticks the child while the script ``if`` holds (checked until it runs), else returns ``else``."""
 
     SCRIPT_PORTS: ClassVar[tuple[str, ...]] = ("if",)
     INPUT_PORTS: ClassVar[dict[str, Port]] = {
@@ -297,8 +307,6 @@ class Precondition(DecoratorNode, register=False):
 
     def step(self) -> Steps:
         if not self._running:
-            from chaser_bt.tree.expressions import truth
-
             self._running = truth(self.scripts["if"].run())
         if not self._running:
             return _STATUS_NAMES[self.get_input("else").upper()]
@@ -317,7 +325,7 @@ _STATUS_NAMES = {"SUCCESS": Status.SUCCESS, "FAILURE": Status.FAILURE, "SKIPPED"
 
 
 class _EntryUpdated(DecoratorNode, register=False):
-    """Ticks the child only if the entry named by ``entry`` was written since this node last looked (BT.CPP's EntryUpdatedDecorator)."""
+    """Ticks the child only if the entry named by ``entry`` was written since the node last looked (EntryUpdatedDecorator)."""
 
     KEY_NAME_PORTS: ClassVar[tuple[str, ...]] = ("entry",)
     BRACES_ARE_OLD_FORM: ClassVar[bool] = False
@@ -367,8 +375,8 @@ class Loop(DecoratorNode, register=False):
     """BT.CPP LoopInt/LoopBool/LoopDouble/LoopString: pops the next item of ``queue`` into ``value`` and ticks the child.
 
     RUNNING after each item the child finishes on (even the last: the next tick finds the queue
-    empty and returns ``if_empty``, SUCCESS by default); a child FAILURE ends the loop with FAILURE. ``queue`` is a literal list (``1;2;3``) or a
-    blackboard list, which the loop consumes.
+    empty and returns ``if_empty``, SUCCESS by default); a child FAILURE ends the loop with
+    FAILURE. ``queue`` is a literal list (``1;2;3``) or a blackboard list.
     """
 
     ITEM: ClassVar[type] = object

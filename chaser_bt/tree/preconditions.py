@@ -28,7 +28,7 @@ import py_trees
 from py_trees.common import Status
 
 from chaser_bt.tree.decorators import DecoratorNode
-from chaser_bt.tree.expressions import Expression, ExpressionError
+from chaser_bt.tree.expressions import Expression, ExpressionError, truth
 from chaser_bt.tree.model import PRECONDITIONS
 from chaser_bt.tree.node_base import SKIPPED, is_active
 
@@ -82,8 +82,6 @@ class Condition:
         return self.expression.run(BlackboardEnv(self.bindings))
 
     def holds(self) -> bool:
-        from chaser_bt.tree.expressions import truth
-
         return truth(self.run())
 
     def __str__(self) -> str:

@@ -9,7 +9,6 @@ party adds nodes by shipping a package with the same entry point.
 from __future__ import annotations
 
 import difflib
-import enum
 import importlib.metadata
 import logging
 from collections.abc import Iterable, Mapping
