@@ -45,6 +45,10 @@ logger = logging.getLogger(__name__)
 SUBTREE_TYPE = NodeType(SUBTREE_ID, SubTree, NodeKind.DECORATOR)
 
 
+#: Characters BT.CPP 4.10 refuses in a tree or node ID (``findForbiddenChar``).
+_FORBIDDEN_IN_IDS = frozenset(" \t\n\r<>&\"'/\\:*?|.")
+
+
 @dataclass
 class ResolvedNode:
     """A node ready to build: its type, instance name, blackboard scope and port wiring.
@@ -157,6 +161,7 @@ class _Resolver:
     # ---- document
 
     def run(self) -> tuple[Resolution, list[Problem]]:
+        self.check_tree_ids()
         inputs = self.inputs()
         main = self.main_tree()
         root = None
@@ -171,6 +176,17 @@ class _Resolver:
                 self.tree(tree_id, _Scope(self.namespace("/", tree_id)), (tree_id,))
         problems = sorted(set(self.problems))
         return Resolution(main, root, tuple(inputs)), problems
+
+    def check_tree_ids(self) -> None:
+        """BT.CPP's rules for a tree ID (``validateModelName``): what it refuses at load is refused here."""
+        for tree_id, tree in self.document.trees.items():
+            forbidden = next((c for c in tree_id if c in _FORBIDDEN_IN_IDS), None)
+            if tree_id in ("Root", "root"):
+                self.problem(tree.location, f"tree ID '{tree_id}' is reserved (BehaviorTree.CPP refuses it)")
+            elif forbidden is not None:
+                self.problem(tree.location, f"tree ID {tree_id!r} contains {forbidden!r}, which BehaviorTree.CPP refuses in IDs")
+            elif tree_id in self.registry:
+                self.problem(tree.location, f"tree ID '{tree_id}' is the name of a registered node: BehaviorTree.CPP refuses it")
 
     def inputs(self) -> list[str]:
         keys: list[str] = []
