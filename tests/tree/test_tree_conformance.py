@@ -13,8 +13,15 @@ import hashlib
 from pathlib import Path
 
 import pytest
+from conformance.trace import (
+    HERE,
+    chaser_trace,
+    golden_trace,
+    registry,
+    stub_registry,
+    stub_trace,
+)
 
-from conformance.trace import HERE, chaser_trace, golden_trace, registry, stub_registry, stub_trace
 from chaser_bt.tree import default_registry, validate_tree
 
 TREES = sorted((HERE / "trees").glob("*.xml"))

@@ -18,7 +18,10 @@ from typing import Any
 import py_trees
 from py_trees.common import Status
 
-from chaser_bt.mission.clock import ManualClock
+try:  # main moves the clocks to chaser_bt.clock; this branch still has them under mission
+    from chaser_bt.clock import ManualClock
+except ImportError:  # pragma: no cover - the layout before that move
+    from chaser_bt.mission.clock import ManualClock
 from chaser_bt.tree import Registry, TreeError, input_port, load_tree, reset_blackboard
 
 HERE = Path(__file__).parent
