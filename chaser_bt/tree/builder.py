@@ -43,6 +43,8 @@ def build_node(resolved: ResolvedNode) -> py_trees.behaviour.Behaviour:
         if children:
             node.add_children(children)
     wire_ports(node, resolved.remappings, resolved.literals, resolved.namespace)
+    if resolved.scripts:
+        node.scripts = dict(resolved.scripts)
     if resolved.conditions:
         wrapper = Preconditions(name=resolved.name, child=node, conditions=resolved.conditions)
         wire_ports(wrapper, namespace=resolved.namespace)

@@ -20,14 +20,22 @@ Conventions shared by all of them:
 from __future__ import annotations
 
 import abc
-
+import enum
 from collections.abc import Iterator, Mapping
 from typing import Any, ClassVar
 
 import py_trees
 from py_trees.common import Status
 
-from chaser_bt.tree.node_base import ControlPorts, PortCheck, SKIPPED, Steps, halt
+from chaser_bt.tree.expressions import number_text
+from chaser_bt.tree.node_base import (
+    SKIPPED,
+    ControlPorts,
+    PortCheck,
+    Steps,
+    halt,
+    is_active,
+)
 from chaser_bt.tree.ports import Port, input_port
 
 __all__ = [
@@ -37,7 +45,13 @@ __all__ = [
     "ReactiveSequence",
     "Fallback",
     "ReactiveFallback",
+    "AsyncSequence",
+    "AsyncFallback",
     "Parallel",
+    "ParallelAll",
+    "TryCatch",
+    "Switch",
+    "SWITCHES",
     "IfThenElse",
     "WhileDoElse",
 ]
@@ -91,7 +105,7 @@ class ControlNode(ControlPorts, py_trees.composites.Composite, register=False):
 
     def stop(self, new_status: Status = Status.INVALID) -> None:
         for child in self.children:
-            if child.status == Status.RUNNING:
+            if is_active(child):
                 child.stop(Status.INVALID)
         if new_status == Status.INVALID:
             self.halted()
@@ -106,7 +120,7 @@ class ControlNode(ControlPorts, py_trees.composites.Composite, register=False):
     def halt_from(self, index: int) -> None:
         """Halt every RUNNING child from ``index`` on."""
         for child in self.children[index:]:
-            if child.status == Status.RUNNING:
+            if is_active(child):
                 child.stop(Status.INVALID)
 
 
@@ -121,6 +135,10 @@ class Sequence(ControlNode, register=False):
     SYMBOL = "{-}"
     #: After a FAILURE, resume at the failed child (SequenceWithMemory) instead of the first.
     RESUME_AFTER_FAILURE: ClassVar[bool] = False
+    #: Return RUNNING after a child that succeeded at once (AsyncSequence, SequenceWithMemory):
+    #: BT.CPP 4.x emits a wake-up and gives the tick back, so a reactive parent re-checks its
+    #: conditions between children.
+    YIELD_BETWEEN_CHILDREN: ClassVar[bool] = False
 
     def __init__(self, name: str) -> None:
         super().__init__(name=name)
@@ -133,7 +151,9 @@ class Sequence(ControlNode, register=False):
 
     def step(self) -> Steps:
         while self.index < len(self.children):
-            status = yield from self.tick_child(self.children[self.index])
+            child = self.children[self.index]
+            was_running = is_active(child)
+            status = yield from self.tick_child(child)
             self.all_skipped &= status == SKIPPED
             if status == Status.RUNNING:
                 return Status.RUNNING
@@ -142,6 +162,13 @@ class Sequence(ControlNode, register=False):
                     self.index = 0
                 return Status.FAILURE
             self.index += 1
+            if (
+                status == Status.SUCCESS
+                and self.YIELD_BETWEEN_CHILDREN
+                and not was_running
+                and self.index < len(self.children)
+            ):
+                return Status.RUNNING
         self.index = 0
         return SKIPPED if self.all_skipped else Status.SUCCESS
 
@@ -159,6 +186,14 @@ class SequenceWithMemory(Sequence, register=False):
 
     SYMBOL = "{-m}"
     RESUME_AFTER_FAILURE = True
+    YIELD_BETWEEN_CHILDREN = True
+
+
+class AsyncSequence(Sequence, register=False):
+    """BT.CPP AsyncSequence: a Sequence that gives the tick back (RUNNING) after each child that succeeded at once."""
+
+    SYMBOL = "{-a}"
+    YIELD_BETWEEN_CHILDREN = True
 
 
 class _Reactive(ControlNode, register=False):
@@ -208,9 +243,14 @@ class Fallback(ControlNode, register=False):
         self.all_skipped = True
         _reset_children(self)
 
+    #: Return RUNNING after a child that failed at once (AsyncFallback).
+    YIELD_BETWEEN_CHILDREN: ClassVar[bool] = False
+
     def step(self) -> Steps:
         while self.index < len(self.children):
-            status = yield from self.tick_child(self.children[self.index])
+            child = self.children[self.index]
+            was_running = is_active(child)
+            status = yield from self.tick_child(child)
             self.all_skipped &= status == SKIPPED
             if status == Status.RUNNING:
                 return Status.RUNNING
@@ -218,11 +258,25 @@ class Fallback(ControlNode, register=False):
                 self.index = 0
                 return Status.SUCCESS
             self.index += 1
+            if (
+                status == Status.FAILURE
+                and self.YIELD_BETWEEN_CHILDREN
+                and not was_running
+                and self.index < len(self.children)
+            ):
+                return Status.RUNNING
         self.index = 0
         return SKIPPED if self.all_skipped else Status.FAILURE
 
     def halted(self) -> None:
         self.index = 0
+
+
+class AsyncFallback(Fallback, register=False):
+    """BT.CPP AsyncFallback: a Fallback that gives the tick back (RUNNING) after each child that failed at once."""
+
+    SYMBOL = "{o-a}"
+    YIELD_BETWEEN_CHILDREN = True
 
 
 class ReactiveFallback(_Reactive, register=False):
@@ -291,6 +345,202 @@ class Parallel(ControlNode, register=False):
         super().stop(new_status)
 
 
+class ParallelAll(ControlNode, register=False):
+    """BT.CPP ParallelAll: ticks every unfinished child until all have finished.
+
+    Then FAILURE if at least ``max_failures`` failed (negative: counted back from the number of
+    children), else SUCCESS; all skipped = skipped.
+    """
+
+    SYMBOL = "/A/"
+    INPUT_PORTS: ClassVar[dict[str, Port]] = {
+        "max_failures": input_port(int, "failures that make FAILURE once all finished (-1 = all children)", default=1),
+    }
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name=name)
+        self._finished: dict[int, Status] = {}
+
+    @classmethod
+    def check_ports(cls, values: Mapping[str, Any], child_count: int) -> PortCheck:
+        value = values.get("max_failures")
+        if isinstance(value, int) and _threshold(value, child_count) > child_count:
+            return [("max_failures", f"max_failures {value} can never be reached with {child_count} children")]
+        return []
+
+    def start(self) -> None:
+        _reset_children(self)
+        self._finished = {}
+
+    def step(self) -> Steps:
+        count = len(self.children)
+        needed_failures = _threshold(self.get_input("max_failures"), count)
+        skipped = 0
+        for index, child in enumerate(self.children):
+            if index in self._finished:
+                continue
+            status = yield from self.tick_child(child)
+            if status in (Status.SUCCESS, Status.FAILURE):
+                self._finished[index] = status
+            elif status == SKIPPED:
+                skipped += 1
+        if skipped == count:
+            return SKIPPED
+        if skipped + len(self._finished) >= count:
+            failures = sum(1 for s in self._finished.values() if s == Status.FAILURE)
+            self._finished = {}
+            return Status.FAILURE if failures >= needed_failures else Status.SUCCESS
+        return Status.RUNNING
+
+    def stop(self, new_status: Status = Status.INVALID) -> None:
+        self._finished = {}
+        super().stop(new_status)
+
+
+class TryCatch(ControlNode, register=False):
+    """BT.CPP TryCatch: the first children run as a Sequence; if one fails, the last child (the catch) runs, then FAILURE.
+
+    With ``catch_on_halt`` a halt while the try children run also ticks the catch child once.
+    """
+
+    SYMBOL = "{!}"
+    CHILDREN = (2, None)
+    INPUT_PORTS: ClassVar[dict[str, Port]] = {
+        "catch_on_halt": input_port(bool, "also run the catch child when halted during the try children", default=False),
+    }
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name=name)
+        self.index = 0
+        self.in_catch = False
+        self.skipped = 0
+
+    def start(self) -> None:
+        _reset_children(self)
+        self.skipped = 0
+        self.in_catch = False
+
+    def step(self) -> Steps:
+        catch = self.children[-1]
+        if self.in_catch:
+            status = yield from self.tick_child(catch)
+            if status == Status.RUNNING:
+                return Status.RUNNING
+            self.index, self.in_catch = 0, False
+            return Status.FAILURE
+        tries = len(self.children) - 1
+        while self.index < tries:
+            status = yield from self.tick_child(self.children[self.index])
+            if status == Status.RUNNING:
+                return Status.RUNNING
+            if status == Status.FAILURE:
+                _reset_children(self)
+                self.index, self.in_catch = 0, True
+                return (yield from self.step())
+            self.skipped += status == SKIPPED
+            self.index += 1
+        all_skipped = self.skipped == tries
+        self.index, self.skipped = 0, 0
+        return SKIPPED if all_skipped else Status.SUCCESS
+
+    def stop(self, new_status: Status = Status.INVALID) -> None:
+        if new_status == Status.INVALID and self.status == Status.RUNNING and not self.in_catch:
+            if self.get_input("catch_on_halt"):
+                for child in self.children[:-1]:
+                    halt_running(child)
+                catch = self.children[-1]
+                for _ in catch.tick():
+                    pass
+                halt_running(catch)
+        self.index, self.skipped, self.in_catch = 0, 0, False
+        super().stop(new_status)
+
+
+class Switch(ControlNode, register=False):
+    """BT.CPP SwitchN: ticks the child of the first ``case_i`` equal to ``variable``, else the last (default) child.
+
+    A change of case halts the child that was running. Subclasses fix the number of cases.
+    """
+
+    SYMBOL = "<S>"
+    CASES: ClassVar[int] = 0
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name=name)
+        self.running = -1
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if cls.CASES:
+            cls.CHILDREN = (cls.CASES + 1, cls.CASES + 1)
+            cls.INPUT_PORTS = {
+                "variable": input_port(object, "the value to switch on", required=False),
+                **{f"case_{i}": input_port(str, f"the value that selects child {i}", required=False)
+                   for i in range(1, cls.CASES + 1)},
+            }
+
+    def start(self) -> None:
+        _reset_children(self)
+        self.running = -1
+
+    def step(self) -> Steps:
+        match = self.CASES
+        variable = _input_or_none(self, "variable")
+        if variable is not None:
+            for index in range(self.CASES):
+                case = _input_or_none(self, f"case_{index + 1}")
+                if case is not None and _same_text(variable, case):
+                    match = index
+                    break
+        if self.running not in (-1, match):
+            halt_running(self.children[self.running])
+        status = yield from self.tick_child(self.children[match])
+        if status == SKIPPED:
+            self.running = -1
+        elif status == Status.RUNNING:
+            self.running = match
+        else:
+            self.running = -1
+        return status
+
+    def halted(self) -> None:
+        self.running = -1
+
+
+def _input_or_none(node: ControlNode, port: str) -> Any:
+    try:
+        return node.get_input(port)
+    except (KeyError, py_trees.ports.NoDataAvailable):
+        return None
+
+
+def _same_text(variable: Any, case: str) -> bool:
+    """BT.CPP's CheckStringEquality: equal as text, or as numbers when both read as numbers."""
+    text = variable.name if isinstance(variable, enum.Enum) else variable
+    if isinstance(text, (int, float)) and not isinstance(text, bool):
+        text = number_text(float(text))
+    text = str(text)
+    if text == case:
+        return True
+    try:
+        return abs(float(text) - float(case)) < 1e-9
+    except ValueError:
+        return False
+
+
+def _make_switches() -> tuple[type[Switch], ...]:
+    made = []
+    for cases in range(2, 7):
+        doc = f"BT.CPP Switch{cases}: {cases} cases and a default child."
+        namespace = {"CASES": cases, "__doc__": doc, "__module__": __name__}
+        cls = type(f"Switch{cases}", (Switch,), namespace, register=False)
+        made.append(cls)
+    return tuple(made)
+
+
+SWITCHES = _make_switches()
+
+
 def _threshold(value: int, child_count: int) -> int:
     """BT.CPP's threshold: a negative value counts back from the number of children (-1 = all)."""
     return max(child_count + value + 1, 0) if value < 0 else value
@@ -323,8 +573,10 @@ class IfThenElse(ControlNode, register=False):
                 self.branch = 1
             elif condition == Status.FAILURE and len(self.children) == 3:
                 self.branch = 2
+            elif condition == Status.FAILURE:
+                return condition  # FAILURE without an else branch
             else:
-                return condition  # FAILURE without an else branch, or a skipped condition
+                raise RuntimeError(f"{self.name}: IfThenElse's condition was skipped (BT.CPP throws)")
         status = yield from self.tick_child(self.children[self.branch])
         if status != Status.RUNNING:
             self.branch = 0
@@ -359,9 +611,9 @@ class WhileDoElse(ControlNode, register=False):
             if len(self.children) == 3:
                 return (yield from self.tick_child(self.children[2]))
             return Status.FAILURE
-        return condition  # skipped condition
+        raise RuntimeError(f"{self.name}: WhileDoElse's condition was skipped (BT.CPP throws)")
 
 
 def halt_running(node: Behaviour) -> None:
-    if node.status == Status.RUNNING:
+    if is_active(node):
         node.stop(Status.INVALID)

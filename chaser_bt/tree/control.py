@@ -17,13 +17,18 @@ from py_trees.common import Status
 
 from chaser_bt.clock import Clock
 from chaser_bt.tree.composites import (
+    SWITCHES,
+    AsyncFallback,
+    AsyncSequence,
     Fallback,
     IfThenElse,
     Parallel,
+    ParallelAll,
     ReactiveFallback,
     ReactiveSequence,
     Sequence,
     SequenceWithMemory,
+    TryCatch,
     WhileDoElse,
 )
 from chaser_bt.tree.decorators import (
@@ -32,14 +37,24 @@ from chaser_bt.tree.decorators import (
     ForceSuccess,
     Inverter,
     KeepRunningUntilFailure,
+    LoopBool,
+    LoopDouble,
+    LoopInt,
+    LoopString,
+    Precondition,
     Repeat,
     RetryUntilSuccessful,
     RunOnce,
+    SkipUnlessUpdated,
     SubTree,
     Timeout,
+    WaitValueUpdate,
 )
+from chaser_bt.tree.entry_versions import entry_version
+from chaser_bt.tree.expressions import truth
 from chaser_bt.tree.node_base import ControlPorts as _ControlPorts
 from chaser_bt.tree.node_base import PortCheck, now, require_clock
+from chaser_bt.tree.node_kind import NodeKind
 from chaser_bt.tree.ports import Port, input_port
 
 __all__ = [
@@ -65,6 +80,13 @@ __all__ = [
     "AlwaysFailure",
     "Wait",
     "SetBlackboard",
+    "UnsetBlackboard",
+    "Script",
+    "ScriptCondition",
+    "Sleep",
+    "WasEntryUpdated",
+    "SkipUnlessUpdated",
+    "WaitValueUpdate",
     "CONTROL_NODES",
     "PortCheck",
 ]
@@ -120,18 +142,115 @@ class Wait(_ControlPorts, py_trees.behaviour.Behaviour, register=False):
 
 
 class SetBlackboard(_ControlPorts, py_trees.behaviour.Behaviour, register=False):
-    """BT.CPP SetBlackboard: writes ``value`` to the entry wired to ``output_key``."""
+    """BT.CPP SetBlackboard: writes ``value`` (a literal, or ``{key}`` to copy an entry) to the entry named by ``output_key``.
 
+    As in BT.CPP, ``output_key`` is the entry's *name* (``output_key="x"``); the old chaser-bt
+    form ``"{x}"`` loads with a warning.
+    """
+
+    KEY_NAME_PORTS: ClassVar[tuple[str, ...]] = ("output_key",)
     INPUT_PORTS: ClassVar[dict[str, Port]] = {
         "value": input_port(object, "value to write"),
     }
     OUTPUT_PORTS: ClassVar[dict[str, Port]] = {
-        "output_key": Port(data_type=object, required=True, description="blackboard entry to write, as {key}"),
+        "output_key": Port(data_type=object, required=True, description="name of the blackboard entry to write"),
     }
 
     def update(self) -> Status:
         self._set_output("output_key", self.get_input("value"))
         return Status.SUCCESS
+
+
+class UnsetBlackboard(_ControlPorts, py_trees.behaviour.Behaviour, register=False):
+    """BT.CPP UnsetBlackboard: removes the entry named by ``key``."""
+
+    KEY_NAME_PORTS: ClassVar[tuple[str, ...]] = ("key",)
+    INPUT_PORTS: ClassVar[dict[str, Port]] = {}
+    OUTPUT_PORTS: ClassVar[dict[str, Port]] = {
+        "key": Port(data_type=object, required=True, description="name of the blackboard entry to remove"),
+    }
+
+    def update(self) -> Status:
+        py_trees.blackboard.Blackboard.unset(self._get_blackboard_key("key"))
+        return Status.SUCCESS
+
+
+class WasEntryUpdated(_ControlPorts, py_trees.behaviour.Behaviour, register=False):
+    """BT.CPP WasEntryUpdated: SUCCESS if the entry named by ``entry`` was written since this node last looked, else FAILURE."""
+
+    KEY_NAME_PORTS: ClassVar[tuple[str, ...]] = ("entry",)
+    BRACES_ARE_OLD_FORM: ClassVar[bool] = False
+    NODE_KIND = NodeKind.CONDITION
+    INPUT_PORTS: ClassVar[dict[str, Port]] = {}
+    OUTPUT_PORTS: ClassVar[dict[str, Port]] = {
+        "entry": Port(data_type=object, required=True, description="name of the blackboard entry to watch"),
+    }
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name=name)
+        self._seen = 0
+
+    def update(self) -> Status:
+        version = entry_version(self._get_blackboard_key("entry"))
+        if version is None:
+            return Status.FAILURE
+        previous, self._seen = self._seen, version
+        return Status.SUCCESS if version != previous else Status.FAILURE
+
+
+class Script(_ControlPorts, py_trees.behaviour.Behaviour, register=False):
+    """BT.CPP Script: runs the script in ``code`` (assignments to the blackboard); SUCCESS."""
+
+    SCRIPT_PORTS: ClassVar[tuple[str, ...]] = ("code",)
+    INPUT_PORTS: ClassVar[dict[str, Port]] = {"code": input_port(str, "the script to run")}
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name=name)
+        self.scripts: dict[str, Any] = {}
+
+    def update(self) -> Status:
+        self.scripts["code"].run()
+        return Status.SUCCESS
+
+
+class ScriptCondition(Script, register=False):
+    """BT.CPP ScriptCondition: SUCCESS when the script in ``code`` is true, else FAILURE."""
+
+    NODE_KIND = NodeKind.CONDITION
+    INPUT_PORTS: ClassVar[dict[str, Port]] = {"code": input_port(str, "the script that must be true")}
+
+    def update(self) -> Status:
+        return Status.SUCCESS if truth(self.scripts["code"].run()) else Status.FAILURE
+
+
+class Sleep(_ControlPorts, py_trees.behaviour.Behaviour, register=False):
+    """BT.CPP Sleep: RUNNING until ``msec`` have passed on the mission clock, then SUCCESS (0: at once)."""
+
+    INPUT_PORTS: ClassVar[dict[str, Port]] = {"msec": input_port(int, "milliseconds to sleep")}
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name=name)
+        self._clock: Clock | None = None
+        self._start = 0.0
+
+    @classmethod
+    def check_ports(cls, values: Mapping[str, Any], child_count: int) -> PortCheck:
+        value = values.get("msec")
+        if isinstance(value, int) and value < 0:
+            return [("msec", f"msec must be >= 0, got {value}")]
+        return []
+
+    def setup(self, **kwargs: Any) -> None:
+        self._clock = require_clock(self, kwargs)
+
+    def initialise(self) -> None:
+        self._start = now(self, self._clock)
+
+    def update(self) -> Status:
+        msec = self.get_input("msec")
+        if (now(self, self._clock) - self._start) * 1000.0 >= msec:
+            return Status.SUCCESS
+        return Status.RUNNING
 
 
 #: Every built-in node, in the order a model export lists them.
@@ -157,4 +276,21 @@ CONTROL_NODES: tuple[type, ...] = (
     AlwaysFailure,
     Wait,
     SetBlackboard,
+    AsyncSequence,
+    AsyncFallback,
+    ParallelAll,
+    TryCatch,
+    *SWITCHES,
+    Precondition,
+    LoopInt,
+    LoopBool,
+    LoopDouble,
+    LoopString,
+    Script,
+    ScriptCondition,
+    Sleep,
+    UnsetBlackboard,
+    WasEntryUpdated,
+    SkipUnlessUpdated,
+    WaitValueUpdate,
 )

@@ -134,7 +134,17 @@ def _map_literals(
     types_from = result if context is None else context
     for tree in result.trees.values():
         for node in _walk(tree.root):
+            node_class = registry.get(node.node_id).cls if node.node_id in registry else None
+            key_ports = getattr(node_class, "KEY_NAME_PORTS", ())
             for port, arg in node.ports.items():
+                if port in key_ports:
+                    # BT.CPP's form names the entry: output_key="x", not the old "{x}".
+                    if getattr(node_class, "BRACES_ARE_OLD_FORM", True) and is_reference_text(arg.value):
+                        try:
+                            arg.value = parse_reference(str(arg.value).strip())
+                        except ValueError:
+                            pass
+                    continue
                 if is_reference_text(arg.value):
                     continue
                 if node.node_id == SUBTREE_ID:

@@ -17,16 +17,19 @@ import py_trees
 from py_trees.common import Status
 
 from chaser_bt.clock import Clock
+from chaser_bt.tree.entry_versions import entry_version
+from chaser_bt.tree.expressions import truth
 from chaser_bt.tree.node_base import (
     SKIPPED,
     ControlPorts,
     PortCheck,
     Steps,
     check_count,
+    is_active,
     now,
     require_clock,
 )
-from chaser_bt.tree.ports import Port, input_port
+from chaser_bt.tree.ports import Port, input_port, output_port
 
 __all__ = [
     "DecoratorNode",
@@ -39,6 +42,13 @@ __all__ = [
     "Delay",
     "RunOnce",
     "KeepRunningUntilFailure",
+    "Precondition",
+    "SkipUnlessUpdated",
+    "WaitValueUpdate",
+    "LoopInt",
+    "LoopBool",
+    "LoopDouble",
+    "LoopString",
     "SubTree",
 ]
 
@@ -46,14 +56,27 @@ Behaviour = py_trees.behaviour.Behaviour
 
 
 class DecoratorNode(ControlPorts, py_trees.decorators.Decorator, register=False):
-    """A decorator whose :meth:`step` decides when to tick the child and returns the new status."""
+    """A decorator whose :meth:`step` decides when to tick the child and returns the new status.
+
+    When it returns SKIPPED (its child was skipped) it keeps its state, ``suspended``, as a BT.CPP
+    decorator stays RUNNING: the next tick resumes (a Repeat's count, a Delay's timer), a halt
+    resets it (:func:`~chaser_bt.tree.node_base.is_active`).
+    """
+
+    #: Keep the run's state when the decorator returns SKIPPED (BT.CPP's decorators do).
+    KEEPS_STATE_WHEN_SKIPPED: ClassVar[bool] = True
+    suspended = False
 
     def tick(self) -> Iterator[Behaviour]:
-        if self.status != Status.RUNNING:
+        if self.status != Status.RUNNING and not self.suspended:
             self.initialise()
+        self.suspended = False
         new_status = yield from self.step()
         if new_status == Status.RUNNING:
             self.status = Status.RUNNING
+        elif new_status == SKIPPED and self.KEEPS_STATE_WHEN_SKIPPED and not is_active(self.decorated):
+            self.status = SKIPPED
+            self.suspended = True
         else:
             self.stop(new_status)
         yield self
@@ -70,8 +93,9 @@ class DecoratorNode(ControlPorts, py_trees.decorators.Decorator, register=False)
         # Halt a running child; reset a finished one on a halt. A child that never ran is left
         # alone, so it sees no spurious terminate().
         self.terminate(new_status)
+        self.suspended = False
         child = self.decorated
-        if child.status == Status.RUNNING or (new_status == Status.INVALID and child.status != Status.INVALID):
+        if is_active(child) or (new_status == Status.INVALID and child.status != Status.INVALID):
             child.stop(Status.INVALID)
         self.status = new_status
         self.iterator = self.tick()
@@ -108,10 +132,13 @@ class ForceFailure(DecoratorNode, register=False):
 
 
 class _LoopingDecorator(DecoratorNode, register=False):
-    """Ticks its child again within the same tick while ``AGAIN_ON`` says so (BT.CPP's loop).
+    """Runs its child again while it returns ``AGAIN_ON``, up to the count (-1 = forever): BT.CPP 4.x's loop.
 
-    With a count of -1 (forever) it returns RUNNING between rounds instead, so a child that
-    finishes instantly cannot hang the tick (BT.CPP would spin inside one tick).
+    A child that finished at once (it was not RUNNING) gives the tick back: the decorator returns
+    RUNNING before the next round, as BT.CPP 4.x does (it emits a wake-up), so a reactive parent
+    re-checks its conditions between rounds and an instant child never hangs a tick. A child that
+    finishes after running starts its next round in the same tick. A skipped child makes the
+    decorator skipped.
     """
 
     COUNT_PORT: ClassVar[str]
@@ -134,13 +161,14 @@ class _LoopingDecorator(DecoratorNode, register=False):
     def step(self) -> Steps:
         new_status = Status.SUCCESS if self.AGAIN_ON == Status.SUCCESS else Status.FAILURE
         while self._limit == -1 or self.rounds < self._limit:
+            was_running = is_active(self.decorated)
             yield from self.decorated.tick()
             child_status = self.decorated.status
             if child_status != self.AGAIN_ON:
                 new_status = child_status
                 break
             self.rounds += 1
-            if self._limit == -1:
+            if not was_running and (self._limit == -1 or self.rounds < self._limit):
                 new_status = Status.RUNNING
                 break
         self.feedback_message = f"{self.rounds}/{self._limit if self._limit >= 0 else 'inf'}"
@@ -249,11 +277,164 @@ class RunOnce(DecoratorNode, register=False):
 
 
 class KeepRunningUntilFailure(DecoratorNode, register=False):
-    """BT.CPP KeepRunningUntilFailure: RUNNING while the child succeeds (restarting it each tick); FAILURE when it fails."""
+    """BT.CPP KeepRunningUntilFailure: RUNNING while the child succeeds (restarted each tick) or is skipped, else FAILURE."""
 
     def step(self) -> Steps:
         status = yield from super().step()
-        return Status.RUNNING if status == Status.SUCCESS else status
+        return Status.FAILURE if status == Status.FAILURE else Status.RUNNING
+
+
+class Precondition(DecoratorNode, register=False):
+    """BT.CPP Precondition: ticks the child while the script ``if`` holds (checked until it runs), else returns ``else``."""
+
+    SCRIPT_PORTS: ClassVar[tuple[str, ...]] = ("if",)
+    INPUT_PORTS: ClassVar[dict[str, Port]] = {
+        "if": input_port(str, "the script that must be true to tick the child"),
+        "else": input_port(str, "status returned when it is false: SUCCESS, FAILURE, SKIPPED or RUNNING", default="FAILURE"),
+    }
+
+    def __init__(self, name: str, child: Behaviour) -> None:
+        super().__init__(name=name, child=child)
+        self.scripts: dict[str, Any] = {}
+        self._running = False
+
+    @classmethod
+    def check_ports(cls, values: Mapping[str, Any], child_count: int) -> PortCheck:
+        value = values.get("else")
+        if isinstance(value, str) and value.upper() not in _STATUS_NAMES:
+            return [("else", f"else must be one of {', '.join(_STATUS_NAMES)}, got {value!r}")]
+        return []
+
+    def step(self) -> Steps:
+        if not self._running:
+            self._running = truth(self.scripts["if"].run())
+        if not self._running:
+            return _STATUS_NAMES[self.get_input("else").upper()]
+        status = yield from super().step()
+        if status in (Status.SUCCESS, Status.FAILURE):
+            self._running = False
+        return status
+
+    def stop(self, new_status: Status = Status.INVALID) -> None:
+        if new_status == Status.INVALID:
+            self._running = False
+        super().stop(new_status)
+
+
+_STATUS_NAMES = {"SUCCESS": Status.SUCCESS, "FAILURE": Status.FAILURE, "SKIPPED": SKIPPED, "RUNNING": Status.RUNNING}
+
+
+class _EntryUpdated(DecoratorNode, register=False):
+    """Ticks the child only if the entry named by ``entry`` was written since the node last looked (EntryUpdatedDecorator)."""
+
+    KEY_NAME_PORTS: ClassVar[tuple[str, ...]] = ("entry",)
+    BRACES_ARE_OLD_FORM: ClassVar[bool] = False
+    INPUT_PORTS: ClassVar[dict[str, Port]] = {}
+    OUTPUT_PORTS: ClassVar[dict[str, Port]] = {
+        "entry": Port(data_type=object, required=True, description="name of the blackboard entry to watch"),
+    }
+    #: What the decorator returns when the entry was not updated.
+    IF_NOT_UPDATED: ClassVar[Status]
+
+    def __init__(self, name: str, child: Behaviour) -> None:
+        super().__init__(name=name, child=child)
+        self._seen = 0
+        self._child_running = False
+
+    def step(self) -> Steps:
+        if not self._child_running:
+            version = entry_version(self._get_blackboard_key("entry"))
+            previous = self._seen
+            if version is not None:
+                self._seen = version
+            if version is None or version == previous:
+                return self.IF_NOT_UPDATED
+        status = yield from super().step()
+        self._child_running = status == Status.RUNNING
+        return status
+
+    def stop(self, new_status: Status = Status.INVALID) -> None:
+        if new_status == Status.INVALID:
+            self._child_running = False
+        super().stop(new_status)
+
+
+class SkipUnlessUpdated(_EntryUpdated, register=False):
+    """BT.CPP SkipUnlessUpdated: SKIPPED unless ``entry`` was written since the last look; then ticks the child."""
+
+    IF_NOT_UPDATED = SKIPPED
+
+
+class WaitValueUpdate(_EntryUpdated, register=False):
+    """BT.CPP WaitValueUpdate: RUNNING until ``entry`` is written; then ticks the child."""
+
+    IF_NOT_UPDATED = Status.RUNNING
+
+
+class Loop(DecoratorNode, register=False):
+    """BT.CPP LoopInt/LoopBool/LoopDouble/LoopString: pops the next item of ``queue`` into ``value`` and ticks the child.
+
+    RUNNING after each item the child finishes on (even the last: the next tick finds the queue
+    empty and returns ``if_empty``, SUCCESS by default); a child FAILURE ends the loop with
+    FAILURE. ``queue`` is a literal list (``1;2;3``) or a blackboard list.
+    """
+
+    ITEM: ClassVar[type] = object
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if cls.ITEM is not object:
+            cls.INPUT_PORTS = {
+                "queue": input_port(list[cls.ITEM], "the items, in order"),
+                "if_empty": input_port(str, "status when the queue is empty: SUCCESS, FAILURE or SKIPPED", default="SUCCESS"),
+            }
+            cls.OUTPUT_PORTS = {"value": output_port(cls.ITEM, "the current item")}
+
+    def __init__(self, name: str, child: Behaviour) -> None:
+        super().__init__(name=name, child=child)
+        self._queue: list[Any] | None = None
+        self._child_running = False
+
+    def initialise(self) -> None:
+        self._child_running = False
+        self._queue = list(self.get_input("queue"))
+
+    def step(self) -> Steps:
+        popped = False
+        if not self._child_running:
+            assert self._queue is not None
+            if self._queue:
+                self._set_output("value", self._queue.pop(0))
+                popped = True
+        if not popped and not self._child_running:
+            return _STATUS_NAMES[self.get_input("if_empty").upper()]
+        status = yield from super().step()
+        self._child_running = status == Status.RUNNING
+        return Status.FAILURE if status == Status.FAILURE else Status.RUNNING
+
+
+class LoopInt(Loop, register=False):
+    """BT.CPP LoopInt."""
+
+    ITEM = int
+
+
+class LoopBool(Loop, register=False):
+    """BT.CPP LoopBool."""
+
+    ITEM = bool
+
+
+class LoopDouble(Loop, register=False):
+    """BT.CPP LoopDouble."""
+
+    ITEM = float
+
+
+class LoopString(Loop, register=False):
+    """BT.CPP LoopString."""
+
+    ITEM = str
 
 
 class SubTree(DecoratorNode, register=False):

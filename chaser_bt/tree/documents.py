@@ -69,6 +69,7 @@ def merge_includes(
     merged = copy.copy(document)
     merged.trees = dict(document.trees)
     merged.inputs = list(document.inputs)
+    merged.subtree_defaults = dict(document.subtree_defaults)
     problems: list[Problem] = []
     here = Path(document.source).resolve() if not document.source.startswith("<") else None
     stack = (*_stack, here) if here is not None else _stack
@@ -107,6 +108,8 @@ def merge_includes(
                 )
             else:
                 merged.trees[tree_id] = tree
+        for tree_id, defaults in included.subtree_defaults.items():
+            merged.subtree_defaults.setdefault(tree_id, defaults)
         known = {arg.value for arg in merged.inputs}
         merged.inputs += [arg for arg in included.inputs if arg.value not in known]
     return merged, problems

@@ -33,7 +33,7 @@ MAX_DEPTH = 100
 #: BT.CPP v4's pre-condition attributes, in the order BT.CPP evaluates them.
 PRECONDITIONS = ("_failureIf", "_successIf", "_skipIf", "_while")
 
-#: BT.CPP v4's post-condition scripts, which this loader refuses (they assign to the blackboard).
+#: BT.CPP v4's post-condition scripts: run when the node succeeds, fails, finishes either way, is halted.
 POSTCONDITIONS = ("_onSuccess", "_onFailure", "_post", "_onHalted")
 
 
@@ -92,6 +92,8 @@ class NodeSpec:
     subtree: SubTreeRef | None = None
     unreadable_children: int = field(default=0, compare=False)
     conditions: dict[str, PortArg] = field(default_factory=dict)
+    #: The XML element it was written as when that was the explicit form (``Action``, ``Condition``...).
+    explicit_tag: str | None = field(default=None, compare=False)
 
     @property
     def display_name(self) -> str:
@@ -123,3 +125,6 @@ class TreeDocument:
     inputs: list[PortArg] = field(default_factory=list)
     trees: dict[str, TreeSpec] = field(default_factory=dict)
     includes: list[PortArg] = field(default_factory=list)
+    #: Port defaults of ``<SubTree>`` entries in a ``<TreeNodesModel>`` (Groot2 writes them), by
+    #: tree id: BT.CPP uses each as the remapping when a SubTree node leaves that port out.
+    subtree_defaults: dict[str, dict[str, PortArg]] = field(default_factory=dict)

@@ -21,7 +21,7 @@ from chaser_bt.tree.ports import Port
 #: What a control node's ``step()`` is: a generator that yields ticked nodes and returns a status.
 Steps = Generator[py_trees.behaviour.Behaviour, None, Status]
 
-__all__ = ["ControlPorts", "PortCheck", "SKIPPED", "check_count", "halt", "require_clock", "now"]
+__all__ = ["ControlPorts", "PortCheck", "SKIPPED", "check_count", "halt", "is_active", "require_clock", "now"]
 
 #: BT.CPP's SKIPPED, as a node's status right after its tick (see the module docstring).
 SKIPPED = Status.INVALID
@@ -42,9 +42,20 @@ class ControlPorts(PortsMixin):
         return []
 
 
+def is_active(node: py_trees.behaviour.Behaviour) -> bool:
+    """Whether BT.CPP would see the node RUNNING: it is, or it is a decorator whose child was just skipped.
+
+    A BT.CPP decorator sets itself RUNNING before ticking its child and stays so when the child is
+    skipped (only SKIPPED goes up), so it keeps its state (a Repeat's count, a Delay's timer) and a
+    parent that halts its RUNNING children halts it. Ours reports SKIPPED as INVALID and marks
+    itself ``suspended``.
+    """
+    return node.status == Status.RUNNING or getattr(node, "suspended", False)
+
+
 def halt(node: py_trees.behaviour.Behaviour) -> None:
     """BT.CPP's ``haltChild``/``resetChild``: a RUNNING node is halted (terminate INVALID), a finished one reset."""
-    if node.status != Status.INVALID:
+    if node.status != Status.INVALID or is_active(node):
         node.stop(Status.INVALID)
 
 

@@ -9,7 +9,6 @@ party adds nodes by shipping a package with the same entry point.
 from __future__ import annotations
 
 import difflib
-import enum
 import importlib.metadata
 import logging
 from collections.abc import Iterable, Mapping
@@ -23,6 +22,7 @@ from py_trees.ports import PortInformation, PortsMixin
 from chaser_bt.tree.control import CONTROL_NODES
 from chaser_bt.tree.errors import UnknownNode
 from chaser_bt.tree.model import SUBTREE_ID
+from chaser_bt.tree.node_kind import NodeKind
 
 __all__ = [
     "NodeKind",
@@ -42,19 +42,6 @@ ENTRY_POINT_GROUP = "chaser_bt.behaviours"
 RESERVED_ATTRIBUTES = frozenset({"name", "children", "child", "ID", "_autoremap"})
 
 B = TypeVar("B", bound=type)
-
-
-class NodeKind(enum.Enum):
-    """BT.CPP's node categories (the tags of a ``<TreeNodesModel>``)."""
-
-    ACTION = "Action"
-    CONDITION = "Condition"
-    CONTROL = "Control"
-    DECORATOR = "Decorator"
-
-    @property
-    def is_leaf(self) -> bool:
-        return self in (NodeKind.ACTION, NodeKind.CONDITION)
 
 
 @dataclass(frozen=True)
@@ -103,6 +90,8 @@ class Registry:
 
     def __init__(self, classes: Iterable[type] = ()) -> None:
         self._types: dict[str, NodeType] = {}
+        #: BT.CPP's scripting enums: names a script reads as integer constants (``registerScriptingEnum``).
+        self.scripting_enums: dict[str, int] = {}
         for cls in classes:
             self.register(cls)
 
@@ -135,6 +124,10 @@ class Registry:
             raise ValueError(f"node id '{node_id}' is already registered to {owner}")
         self._types[node_id] = NodeType(node_id=node_id, cls=cls, kind=_kind_of(cls))
         return cls
+
+    def register_scripting_enum(self, name: str, value: int) -> None:
+        """Let scripts use ``name`` for the integer ``value`` (BT.CPP's ``registerScriptingEnum``)."""
+        self.scripting_enums[name] = int(value)
 
     def get(self, node_id: str) -> NodeType:
         """The node type registered as ``node_id``.
@@ -174,6 +167,7 @@ class Registry:
         """An independent registry with the same entries."""
         clone = Registry()
         clone._types = dict(self._types)
+        clone.scripting_enums = dict(self.scripting_enums)
         return clone
 
 

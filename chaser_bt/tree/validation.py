@@ -13,6 +13,7 @@ remaps (or all keys, with ``_autoremap: true``) reach the parent; ``{@key}`` is 
 from __future__ import annotations
 
 import enum
+import logging
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
@@ -23,7 +24,7 @@ from py_trees.ports_utils import sanitize_name_for_blackboard_use
 from chaser_bt.tree.control import SubTree
 from chaser_bt.tree.errors import Problem, UnknownNode
 from chaser_bt.tree.expressions import ExpressionError, parse_expression
-from chaser_bt.tree.model import MAX_DEPTH, PRECONDITIONS, SUBTREE_ID, Location, NodeSpec, PortArg, TreeDocument
+from chaser_bt.tree.model import MAX_DEPTH, POSTCONDITIONS, PRECONDITIONS, SUBTREE_ID, Location, NodeSpec, PortArg, TreeDocument
 from chaser_bt.tree.ports import (
     SAME_AS_PORT,
     LiteralError,
@@ -38,8 +39,14 @@ from chaser_bt.tree.registry import NodeKind, NodeType, Registry
 
 __all__ = ["ResolvedNode", "Resolution", "resolve_document", "typed_literal", "SUBTREE_TYPE"]
 
+logger = logging.getLogger(__name__)
+
 #: The node type of a SubTree instance (a pass-through wrapper around the instantiated tree).
 SUBTREE_TYPE = NodeType(SUBTREE_ID, SubTree, NodeKind.DECORATOR)
+
+
+#: Characters BT.CPP 4.10 refuses in a tree or node ID (``findForbiddenChar``).
+_FORBIDDEN_IN_IDS = frozenset(" \t\n\r<>&\"'/\\:*?|.")
 
 
 @dataclass
@@ -50,7 +57,8 @@ class ResolvedNode:
         remappings: port -> absolute blackboard key (``{key}`` references and default keys).
         literals: port -> typed value, stored on the blackboard privately for that node.
         wiring: port -> how a person reads it ("20", "{/alt}"), for display.
-        conditions: BT.CPP pre-conditions, in BT.CPP's order of evaluation.
+        conditions: BT.CPP pre-conditions, in BT.CPP's order of evaluation, then post-conditions.
+        scripts: port -> the script a script port (``Script``'s ``code``) holds, bound to the blackboard.
     """
 
     node_type: NodeType
@@ -62,6 +70,7 @@ class ResolvedNode:
     wiring: dict[str, str] = field(default_factory=dict)
     children: list[ResolvedNode] = field(default_factory=list)
     conditions: list[Condition] = field(default_factory=list)
+    scripts: dict[str, Condition] = field(default_factory=dict)
 
 
 @dataclass
@@ -120,7 +129,8 @@ class _Scope:
             return "/" + key[1:]
         if key in self.bindings:
             return self.bindings[key]
-        if self.autoremap and self.parent is not None:
+        # _autoremap passes every key through but the private ones (``_name``), as BT.CPP does.
+        if self.autoremap and self.parent is not None and not key.startswith("_"):
             return self.parent.resolve(key)
         return py_trees.blackboard.Blackboard.absolute_name(self.namespace, key)
 
@@ -151,6 +161,7 @@ class _Resolver:
     # ---- document
 
     def run(self) -> tuple[Resolution, list[Problem]]:
+        self.check_tree_ids()
         inputs = self.inputs()
         main = self.main_tree()
         root = None
@@ -165,6 +176,17 @@ class _Resolver:
                 self.tree(tree_id, _Scope(self.namespace("/", tree_id)), (tree_id,))
         problems = sorted(set(self.problems))
         return Resolution(main, root, tuple(inputs)), problems
+
+    def check_tree_ids(self) -> None:
+        """BT.CPP's rules for a tree ID (``validateModelName``): what it refuses at load is refused here."""
+        for tree_id, tree in self.document.trees.items():
+            forbidden = next((c for c in tree_id if c in _FORBIDDEN_IN_IDS), None)
+            if tree_id in ("Root", "root"):
+                self.problem(tree.location, f"tree ID '{tree_id}' is reserved (BehaviorTree.CPP refuses it)")
+            elif forbidden is not None:
+                self.problem(tree.location, f"tree ID {tree_id!r} contains {forbidden!r}, which BehaviorTree.CPP refuses in IDs")
+            elif tree_id in self.registry:
+                self.problem(tree.location, f"tree ID '{tree_id}' is the name of a registered node: BehaviorTree.CPP refuses it")
 
     def inputs(self) -> list[str]:
         keys: list[str] = []
@@ -231,30 +253,38 @@ class _Resolver:
         return resolved
 
     def conditions(self, spec: NodeSpec, scope: _Scope) -> list[Condition]:
-        """Parse the node's pre-conditions; their variables resolve in the node's own scope, as its ports do."""
+        """Parse the node's pre- and post-conditions; their names resolve in the node's own scope, as its ports do."""
         conditions = []
-        for kind in PRECONDITIONS:
+        for kind in (*PRECONDITIONS, *POSTCONDITIONS):
             arg = spec.conditions.get(kind)
-            if arg is None:
-                continue
-            try:
-                expression = parse_expression(str(arg.value))
-            except ExpressionError as e:
-                self.problem(arg.value_at, f"{kind} of {spec.node_id}: {e}")
-                continue
-            bindings: dict[str, str | Constant] = {}
-            for variable in expression.variables:
-                binding = scope.resolve(variable)
-                if isinstance(binding, _Literal):
-                    value = binding.value
-                    if binding.from_text and isinstance(value, str):
-                        value = literal_from_text(value, object)
-                    bindings[variable] = Constant(value)
-                else:
-                    bindings[variable] = binding
-                    self.reads.append(_Read(binding, arg.value_at, f"{kind} of {spec.node_id}"))
-            conditions.append(Condition(kind, expression, bindings))
+            if arg is not None:
+                script = self.script(kind, str(arg.value), arg.value_at, scope, f"{kind} of {spec.node_id}")
+                if script is not None:
+                    conditions.append(script)
         return conditions
+
+    def script(self, kind: str, text: str, location: Location, scope: _Scope, what: str) -> Condition | None:
+        """A BT.CPP script bound to the blackboard keys of ``scope`` (None, with a problem, when malformed)."""
+        try:
+            expression = parse_expression(text, self.registry.scripting_enums)
+        except ExpressionError as e:
+            self.problem(location, f"{what}: {e}")
+            return None
+        bindings: dict[str, str | Constant] = {}
+        for variable in expression.variables:
+            binding = scope.resolve(variable)
+            if isinstance(binding, _Literal):
+                value = binding.value
+                if binding.from_text and isinstance(value, str):
+                    value = literal_from_text(value, object)
+                bindings[variable] = Constant(value)
+            else:
+                bindings[variable] = binding
+                if variable in expression.assigned:
+                    self.writes.add(binding)
+                else:
+                    self.reads.append(_Read(binding, location, what))
+        return Condition(kind, expression, bindings)
 
     def plain_node(self, spec: NodeSpec, scope: _Scope, stack: tuple[str, ...]) -> ResolvedNode | None:
         if spec.node_id == SUBTREE_ID:
@@ -275,6 +305,14 @@ class _Resolver:
         return resolved
 
     def check_children(self, spec: NodeSpec, node_type: NodeType) -> None:
+        if spec.node_id == "ReactiveSequence":
+            for child in spec.children:
+                if child.explicit_tag is not None:
+                    self.problem(
+                        child.location,
+                        f"BehaviorTree.CPP 4.10 cannot load <{child.explicit_tag} ID=\"{child.node_id}\"> directly under "
+                        f"a ReactiveSequence (it looks the tag up as a node id): write <{child.node_id} .../>",
+                    )
         if spec.unreadable_children:
             return
         count = len(spec.children)
@@ -295,6 +333,17 @@ class _Resolver:
             self.problem(arg.location, f"{spec.node_id} has no port '{port}'; {listed}")
             return
         is_output = port in node_type.output_ports
+        if port in getattr(node_type.cls, "SCRIPT_PORTS", ()) and not is_reference_text(arg.value):
+            script = self.script(port, str(arg.value), arg.value_at, scope, f"port '{port}' of {spec.node_id}")
+            if script is not None:
+                resolved.scripts[port] = script
+                resolved.literals[port] = str(arg.value)
+                resolved.wiring[port] = repr(str(arg.value))
+            return
+        if port in getattr(node_type.cls, "KEY_NAME_PORTS", ()):
+            arg = self.key_name(spec, port, arg, getattr(node_type.cls, "BRACES_ARE_OLD_FORM", True))
+            if arg is None:
+                return
         if not is_reference_text(arg.value):
             if is_output:
                 self.problem(
@@ -325,6 +374,28 @@ class _Resolver:
             self.writes.add(binding)
         elif declaration.required and not declaration.has_default:
             self.reads.append(_Read(binding, arg.value_at, f"port '{port}' of {spec.node_id}"))
+
+    def key_name(self, spec: NodeSpec, port: str, arg: PortArg, braces_are_old_form: bool = True) -> PortArg | None:
+        """A port whose value names a blackboard entry (BT.CPP's ``SetBlackboard output_key="x"``), as a reference.
+
+        The old chaser-bt form ``output_key="{x}"`` still loads, with a warning saying how to fix it
+        (BT.CPP would read entry x's *value* as the name, and fail).
+        """
+        text = str(arg.value).strip()
+        if is_reference_text(text) and not braces_are_old_form:
+            return arg
+        if is_reference_text(text):
+            where = arg.value_at
+            logger.warning(
+                "%s:%d:%d: %s %s=%r is the old form: BehaviorTree.CPP reads the text as the entry's name, "
+                "write %s=%r",
+                where.file, where.line, where.column, spec.node_id, port, text, port, text.strip("{}"),
+            )
+            return arg
+        if not text:
+            self.problem(arg.value_at, f"port '{port}' of {spec.node_id} needs the name of a blackboard entry")
+            return None
+        return PortArg("{" + text + "}", arg.location, arg.value_location, from_text=False)
 
     def literal(
         self,
@@ -398,7 +469,9 @@ class _Resolver:
         self.instantiated.add(ref.tree_id)
         used = set(self.keys_used(ref.tree_id, set()))
         bindings: dict[str, _Binding] = {}
-        for port, arg in spec.ports.items():
+        defaults = self.document.subtree_defaults.get(ref.tree_id, {})
+        ports = {**{p: a for p, a in defaults.items() if p in used}, **spec.ports}
+        for port, arg in ports.items():
             if port not in used:
                 listed = ", ".join(sorted(used)) or "none"
                 self.problem(arg.location, f"SubTree '{ref.tree_id}' uses no key '{port}'; its keys: {listed}")
@@ -440,9 +513,13 @@ class _Resolver:
                         continue
                     if not key.startswith("@"):
                         yield port if key == SAME_AS_PORT else key
-            for arg in node.conditions.values():
+            scripts = list(node.conditions.values())
+            if node.node_id in self.registry:
+                script_ports = getattr(self.registry.get(node.node_id).cls, "SCRIPT_PORTS", ())
+                scripts += [arg for port, arg in node.ports.items() if port in script_ports]
+            for arg in scripts:
                 try:
-                    variables = parse_expression(str(arg.value)).variables
+                    variables = parse_expression(str(arg.value), self.registry.scripting_enums).variables
                 except ExpressionError:
                     continue
                 yield from (v for v in variables if not v.startswith("@"))

@@ -183,7 +183,7 @@ class _Parser:
             elif element.tag == "include":
                 self.include(document, element)
             elif element.tag == "TreeNodesModel":
-                continue  # Groot2 saves the node model it knew; ours comes from the registry
+                self.subtree_models(document, element)  # the rest is Groot2's; ours comes from the registry
             else:
                 self.problem(
                     element.location,
@@ -192,6 +192,18 @@ class _Parser:
         if not document.trees and not document.includes:
             self.problem(root.location, "no <BehaviorTree> in the file")
         return document, self.problems
+
+    def subtree_models(self, document: TreeDocument, model: _Element) -> None:
+        """Port defaults of ``<SubTree ID>`` model entries: BT.CPP's remapping for ports a SubTree node omits."""
+        for entry in model.children:
+            tree_id = entry.attrs.get("ID", "")
+            if entry.tag != "SubTree" or not tree_id:
+                continue
+            defaults = document.subtree_defaults.setdefault(tree_id, {})
+            for port in entry.children:
+                name, default = port.attrs.get("name", ""), port.attrs.get("default")
+                if port.tag.endswith("_port") and name and default is not None and default != "":
+                    defaults[name] = PortArg(default, port.location, self.src.attribute_at(port, "default"), from_text=True)
 
     def root_attributes(self, document: TreeDocument, root: _Element) -> None:
         for name in root.attrs:
@@ -267,6 +279,8 @@ class _Parser:
                 self.problem(element.location, f"<{element.tag}> needs ID=\"NodeId\": the node to use")
                 return None
         spec = NodeSpec(node_id, element.location)
+        if element.tag in _EXPLICIT_TAGS:
+            spec.explicit_tag = element.tag
         if node_id == SUBTREE_ID:
             subtree_id = attrs.pop("ID", "")
             autoremap = self.autoremap(element, attrs.pop("_autoremap", None))
@@ -278,17 +292,15 @@ class _Parser:
             where = self.src.attribute_at(element, name)
             if name == "name":
                 spec.name = value or None
-            elif name in PRECONDITIONS:
+            elif name in PRECONDITIONS or name in POSTCONDITIONS:
                 if value.strip():
                     spec.conditions[name] = PortArg(value, where)
                 else:
-                    self.problem(where, f"{name} needs a blackboard expression")
-            elif name in POSTCONDITIONS:
-                self.problem(where, f"post-condition {name} is not supported: write the assignment as a node")
+                    self.problem(where, f"{name} needs a script")
             elif name in _EDITOR_ATTRIBUTES:
                 continue
             elif name.startswith("_"):
-                known = ", ".join((*PRECONDITIONS, *(("_autoremap",) if node_id == SUBTREE_ID else ())))
+                known = ", ".join((*PRECONDITIONS, *POSTCONDITIONS, *(("_autoremap",) if node_id == SUBTREE_ID else ())))
                 self.problem(where, f"unknown special attribute '{name}' (BT.CPP's are {known})")
             else:
                 spec.ports[name] = PortArg(value, where, from_text=True)

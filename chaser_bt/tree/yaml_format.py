@@ -251,12 +251,10 @@ class _Parser:
                 )
                 spec.children.extend(child for child in items if child is not None)
                 spec.unreadable_children += sum(1 for child in items if child is None)
-            elif key in PRECONDITIONS:
-                expression = self.string(value_node, f"{key} (a blackboard expression)")
+            elif key in PRECONDITIONS or key in POSTCONDITIONS:
+                expression = self.string(value_node, f"{key} (a script)")
                 if expression is not None:
                     spec.conditions[key] = PortArg(expression, self.at(key_node), self.at(value_node))
-            elif key in POSTCONDITIONS:
-                self.problem(key_node, f"post-condition {key} is not supported: write the assignment as a node")
             elif spec.node_id == SUBTREE_ID and key == "ID":
                 subtree_id = self.string(value_node, "SubTree ID")
             elif spec.node_id == SUBTREE_ID and key == "_autoremap":

@@ -26,7 +26,7 @@ XML_SEED = """<?xml version="1.0"?>
       <Probe _while="ok &amp;&amp; alt &gt; 3"/>
       <Repeat num_cycles="2"><Target altitude_m="{alt}" offset_m="1;2;3" mode="RTL" reached_m="{r}"/></Repeat>
       <SubTree ID="Sub" _autoremap="true" x="4"/>
-      <Action ID="SetBlackboard" value="[1, 2]" output_key="{k}"/>
+      <Sequence><Action ID="SetBlackboard" value="[1, 2]" output_key="k"/></Sequence>
     </ReactiveSequence>
   </BehaviorTree>
   <BehaviorTree ID="Sub"><Parallel success_count="-1"><Wait duration_s="{x}"/><AlwaysSuccess/></Parallel></BehaviorTree>
@@ -45,7 +45,7 @@ trees:
         - Probe: {_while: "ok && alt > 3"}
         - Repeat: {num_cycles: 2, child: {Target: {altitude_m: "{alt}", offset_m: [1, 2, 3], mode: RTL, reached_m: "{r}"}}}
         - SubTree: {ID: Sub, _autoremap: true, x: 4}
-        - SetBlackboard: {value: [1, 2], output_key: "{k}"}
+        - Sequence: {children: [SetBlackboard: {value: [1, 2], output_key: k}]}
   Sub:
     Parallel:
       success_count: -1

@@ -148,7 +148,8 @@ def test_skip_if_skips_the_recovery_so_the_retry_comes_at_once(stand_ins, script
     Blackboard.set("/recovery_done", True)
     script.statuses = {"goto": [F, S], "home": [S]}
     root = load(NAVIGATE_WITH_RECOVERY, stand_ins, script)
-    assert run(root, 1) == [S]
+    # The failed attempt gives the tick back (BT.CPP 4.x's retry); the next tick retries at once.
+    assert run(root, 2) == [R, S]
     assert script.updates("recovery hover") == 0
     assert script.updates("goto") == 2
 
@@ -158,7 +159,7 @@ def test_takeoff_is_retried_up_to_num_attempts_then_the_mission_fails(stand_ins,
     Blackboard.set("/recovery_done", False)
     script.statuses = {"takeoff": [F]}
     root = load(NAVIGATE_WITH_RECOVERY, stand_ins, script)
-    assert run(root, 1) == [F]
+    assert run(root, 3) == [R, R, F]
     assert script.updates("takeoff") == 3
     assert script.updates("goto") == 0
 
