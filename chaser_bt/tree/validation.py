@@ -51,6 +51,7 @@ class ResolvedNode:
         literals: port -> typed value, stored on the blackboard privately for that node.
         wiring: port -> how a person reads it ("20", "{/alt}"), for display.
         conditions: BT.CPP pre-conditions, in BT.CPP's order of evaluation.
+        spec: the node as written (Groot2's monitor writes the tree back from it).
     """
 
     node_type: NodeType
@@ -62,6 +63,7 @@ class ResolvedNode:
     wiring: dict[str, str] = field(default_factory=dict)
     children: list[ResolvedNode] = field(default_factory=list)
     conditions: list[Condition] = field(default_factory=list)
+    spec: NodeSpec | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass
@@ -228,6 +230,7 @@ class _Resolver:
         conditions = self.conditions(spec, scope)
         if resolved is not None:
             resolved.conditions = conditions
+            resolved.spec = spec
         return resolved
 
     def conditions(self, spec: NodeSpec, scope: _Scope) -> list[Condition]:

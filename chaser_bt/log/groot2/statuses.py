@@ -1,0 +1,77 @@
+"""Node statuses as BT.CPP's Groot2 publisher reports them, mirrored from a py_trees tree after each tick.
+
+BT.CPP resets a node to IDLE when its parent finishes (``resetChildren``) and the root when the
+tree finishes (``tickRoot``); the publisher then shows ``10 + the status it had`` (12: idle after
+SUCCESS). A skipped node keeps its IDLE (BT.CPP never stores SKIPPED). py_trees leaves finished
+nodes at SUCCESS/FAILURE and a skipped one INVALID, so the mirror applies BT.CPP's rule itself:
+below a parent that is not RUNNING every node is IDLE. Which nodes were ticked (a py_trees visitor
+sees them) tells a node that ran and was reset in the same tick from one left over from an old run.
+
+The transitions (for Groot2's recording) are the mirrored changes, stamped at the end of the tick;
+a control node that starts and finishes within one tick is recorded with its final status only
+(BT.CPP also records the RUNNING it passes through).
+"""
+
+from __future__ import annotations
+
+import uuid
+from collections.abc import Collection, Sequence
+
+from py_trees.common import Status
+
+from chaser_bt.log.groot2.protocol import IDLE_FROM, NodeStatus, encode_statuses
+from chaser_bt.log.groot2.tree_xml import MonitoredNode
+
+__all__ = ["StatusMirror"]
+
+_FROM_PY = {Status.RUNNING: NodeStatus.RUNNING, Status.SUCCESS: NodeStatus.SUCCESS, Status.FAILURE: NodeStatus.FAILURE}
+
+
+class StatusMirror:
+    """BT.CPP's status buffer for ``nodes`` (in STATUS order), updated by :meth:`update` after every tick."""
+
+    def __init__(self, nodes: Sequence[MonitoredNode]) -> None:
+        self.nodes = tuple(nodes)
+        self._order = sorted(self.nodes, key=lambda n: n.uid)  # parents before children
+        self._state = {n.uid: NodeStatus.IDLE for n in self.nodes}  # BT.CPP's node status
+        self._code = {n.uid: int(NodeStatus.IDLE) for n in self.nodes}  # what STATUS reports
+
+    def update(self, ticked: Collection[uuid.UUID]) -> list[tuple[int, NodeStatus]]:
+        """Mirror the statuses after a tick; ``ticked``: ids of the behaviours the tick visited.
+
+        Returns the transitions, (uid, new status), in uid order.
+        """
+        transitions: list[tuple[int, NodeStatus]] = []
+        for node in self._order:
+            py = _FROM_PY.get(node.behaviour.status)
+            if node.parent is None:
+                reset = py in (NodeStatus.SUCCESS, NodeStatus.FAILURE)  # tickRoot resets a finished root
+            else:
+                reset = self._state[node.parent] != NodeStatus.RUNNING
+            old = self._state[node.uid]
+            if py is not None and not reset:
+                if py != old:
+                    transitions.append((node.uid, py))
+                self._state[node.uid] = py
+                self._code[node.uid] = int(py)
+                continue
+            ran = py in (NodeStatus.SUCCESS, NodeStatus.FAILURE) and (old != NodeStatus.IDLE or node.behaviour.id in ticked)
+            if ran and py != old:
+                transitions.append((node.uid, py))
+                last = py
+            elif old != NodeStatus.IDLE:
+                last = old
+            else:
+                continue
+            transitions.append((node.uid, NodeStatus.IDLE))
+            self._state[node.uid] = NodeStatus.IDLE
+            self._code[node.uid] = IDLE_FROM + int(last)
+        return transitions
+
+    def codes(self) -> list[tuple[int, int]]:
+        """(uid, status code) in STATUS order."""
+        return [(n.uid, self._code[n.uid]) for n in self.nodes]
+
+    def payload(self) -> bytes:
+        """The STATUS reply's payload."""
+        return encode_statuses(self.codes())

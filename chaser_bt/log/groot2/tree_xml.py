@@ -1,0 +1,183 @@
+"""The tree as BT.CPP's Groot2 publisher describes it: node uids, status order and the FULLTREE XML.
+
+BT.CPP numbers nodes as it creates them, depth first from 1, a SubTree's nodes right after the
+SubTree node (``Tree::getUID``); its ``tree.subtrees`` lists the main tree, then each SubTree
+instance as it is met, and the STATUS payload walks subtree after subtree, each in creation order
+(so uids are not ascending when there are subtrees). The XML is ``WriteTreeToXML(tree, true, true)``:
+one ``<BehaviorTree ID _fullpath>`` per instance, every node with ``name`` (SubTree: ``ID`` and
+``_fullpath``), ``_uid``, its input ports as written plus the defaults of those not written, output
+ports, pre-conditions; then the ``<TreeNodesModel>`` of every registered node, built-ins included.
+The node model is :func:`chaser_bt.tree.node_model.node_model_xml`'s, the attribute text
+:mod:`chaser_bt.tree.xml_format`'s; only the tinyxml2 layout (4-space indent, no declaration) is here.
+
+A node with pre-conditions is one BT.CPP node but two py_trees behaviours here (the
+:class:`~chaser_bt.tree.preconditions.Preconditions` wrapper around it): the wrapper carries the uid.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import py_trees
+
+from chaser_bt.tree import MissionTree, Registry, default_registry
+from chaser_bt.tree.model import SUBTREE_ID
+from chaser_bt.tree.node_model import _default as default_text
+from chaser_bt.tree.node_model import node_model_xml
+from chaser_bt.tree.ports import LiteralError, is_reference_text, literal_text
+from chaser_bt.tree.validation import ResolvedNode
+from chaser_bt.tree.xml_format import FORMAT_VERSION
+from chaser_bt.tree.xml_format import _attributes as xml_attributes
+
+__all__ = ["MonitoredNode", "MonitoredTree", "describe_tree"]
+
+_INDENT = "    "  # tinyxml2's XMLPrinter
+
+
+@dataclass(frozen=True)
+class MonitoredNode:
+    """One BT.CPP node: its uid, the behaviour whose status it shows, and its parent's uid (None: root)."""
+
+    uid: int
+    behaviour: py_trees.behaviour.Behaviour
+    parent: int | None
+
+
+@dataclass(frozen=True)
+class MonitoredTree:
+    """The FULLTREE XML and the nodes in STATUS order."""
+
+    xml: str
+    nodes: tuple[MonitoredNode, ...]
+
+
+@dataclass
+class _Element:
+    tag: str
+    attrs: dict[str, str]
+    children: list[_Element] = field(default_factory=list)
+
+
+@dataclass
+class _Subtree:
+    tree_id: str
+    instance_name: str
+    element: _Element
+    nodes: list[MonitoredNode] = field(default_factory=list)
+
+
+def describe_tree(tree: MissionTree, registry: Registry | None = None) -> MonitoredTree:
+    """Number ``tree``'s nodes as BT.CPP would and write its FULLTREE XML.
+
+    ``registry`` (default: :func:`default_registry`) is what the TreeNodesModel lists.
+
+    Raises:
+        ValueError: the tree was not built by :func:`chaser_bt.tree.load_tree` (no resolved nodes).
+    """
+    if tree.resolved is None:
+        raise ValueError("the tree has no resolved nodes: load it with chaser_bt.tree.load_tree")
+    builder = _Builder()
+    builder.subtree(tree.name, "", tree.resolved, tree.root, None)
+    lines = [f"<root{xml_attributes({'BTCPP_format': FORMAT_VERSION})}>"]
+    for sub in builder.subtrees:
+        _write(sub.element, 1, lines)
+    lines += _model_lines(registry if registry is not None else default_registry())
+    lines.append("</root>")
+    nodes = tuple(node for sub in builder.subtrees for node in sub.nodes)
+    return MonitoredTree("\n".join(lines) + "\n", nodes)
+
+
+class _Builder:
+    def __init__(self) -> None:
+        self.subtrees: list[_Subtree] = []
+        self.uid = 0
+
+    def subtree(
+        self, tree_id: str, instance: str, resolved: ResolvedNode, behaviour: py_trees.behaviour.Behaviour,
+        parent: int | None,
+    ) -> None:
+        sub = _Subtree(tree_id, instance, _Element("BehaviorTree", {"ID": tree_id, "_fullpath": instance}))
+        self.subtrees.append(sub)
+        self.node(resolved, behaviour, sub, sub.element, parent, instance + "/" if instance else "")
+
+    def node(
+        self, resolved: ResolvedNode, behaviour: py_trees.behaviour.Behaviour, sub: _Subtree,
+        parent_element: _Element, parent: int | None, prefix: str,
+    ) -> None:
+        self.uid += 1
+        uid = self.uid
+        sub.nodes.append(MonitoredNode(uid, behaviour, parent))
+        inner = behaviour.decorated if resolved.conditions else behaviour
+        spec = resolved.spec
+        assert spec is not None
+        if spec.node_id == SUBTREE_ID and spec.subtree is not None:
+            tree_id = spec.subtree.tree_id
+            name = spec.name or tree_id
+            path = prefix + name + (f"::{uid}" if name == tree_id else "")
+            attrs = {"ID": tree_id, "_fullpath": path, "_uid": str(uid)}
+        else:
+            attrs = {"name": resolved.name, "_uid": str(uid)}
+        attrs.update(_ports(resolved))
+        attrs.update({kind: str(arg.value) for kind, arg in spec.conditions.items()})
+        element = _Element(spec.node_id, attrs)
+        parent_element.children.append(element)
+        if spec.node_id == SUBTREE_ID and spec.subtree is not None:
+            if resolved.children:
+                instance = sub.instance_name + ("/" if sub.instance_name else "")
+                instance += spec.name if spec.name else f"{spec.subtree.tree_id}::{uid}"
+                self.subtree(spec.subtree.tree_id, instance, resolved.children[0], inner.decorated, uid)
+            return
+        for child_resolved, child in zip(resolved.children, inner.children, strict=True):
+            self.node(child_resolved, child, sub, element, uid, prefix)
+
+
+def _ports(resolved: ResolvedNode) -> dict[str, str]:
+    """BT.CPP's ``config().input_ports`` then ``output_ports``: as written, then the defaults of the rest."""
+    spec = resolved.spec
+    assert spec is not None
+    node_type = resolved.node_type
+    out: dict[str, str] = {}
+    for port, arg in spec.ports.items():
+        if arg.from_text or is_reference_text(arg.value):
+            out[port] = str(arg.value)
+            continue
+        declaration = node_type.port(port)
+        try:
+            out[port] = literal_text(arg.value, declaration.data_type if declaration is not None else object)
+        except LiteralError:
+            out[port] = str(arg.value)
+    if spec.node_id == SUBTREE_ID:
+        return out
+    for direction, ports in ((0, node_type.input_ports), (1, node_type.output_ports)):
+        for port, declaration in ports.items():
+            default = default_text(declaration)
+            if port in out or default is None:
+                continue
+            if direction == 0 or is_reference_text(default):
+                out[port] = default
+    return out
+
+
+def _write(element: _Element, depth: int, lines: list[str]) -> None:
+    indent = _INDENT * depth
+    attrs = xml_attributes(element.attrs)
+    if not element.children:
+        lines.append(f"{indent}<{element.tag}{attrs}/>")
+        return
+    lines.append(f"{indent}<{element.tag}{attrs}>")
+    for child in element.children:
+        _write(child, depth + 1, lines)
+    lines.append(f"{indent}</{element.tag}>")
+
+
+def _model_lines(registry: Registry) -> list[str]:
+    """The ``<TreeNodesModel>`` block of :func:`node_model_xml` (built-ins included), re-indented as tinyxml2 does."""
+    lines = node_model_xml(registry, include_builtin=True).splitlines()
+    start = next(i for i, line in enumerate(lines) if line.strip() == "<TreeNodesModel>")
+    end = next(i for i, line in enumerate(lines) if line.strip() == "</TreeNodesModel>")
+    out = []
+    for line in lines[start:end + 1]:
+        stripped = line.lstrip(" ")
+        depth = (len(line) - len(stripped)) // 2  # node_model_xml indents by two spaces
+        out.append(_INDENT * depth + stripped)
+    return out
