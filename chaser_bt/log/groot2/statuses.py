@@ -7,9 +7,9 @@ nodes at SUCCESS/FAILURE and a skipped one INVALID, so the mirror applies BT.CPP
 below a parent that is not RUNNING every node is IDLE. Which nodes were ticked (a py_trees visitor
 sees them) tells a node that ran and was reset in the same tick from one left over from an old run.
 
-The transitions (for Groot2's recording) are the mirrored changes, stamped at the end of the tick;
-a control node that starts and finishes within one tick is recorded with its final status only
-(BT.CPP also records the RUNNING it passes through).
+The transitions (for Groot2's recording) are the mirrored changes, stamped at the end of the tick,
+in uid order (BT.CPP's are in the order the callbacks fire); a control node or decorator that
+starts and finishes within one tick passes through RUNNING first, as BT.CPP's set themselves RUNNING.
 """
 
 from __future__ import annotations
@@ -49,13 +49,17 @@ class StatusMirror:
             else:
                 reset = self._state[node.parent] != NodeStatus.RUNNING
             old = self._state[node.uid]
+            done = py in (NodeStatus.SUCCESS, NodeStatus.FAILURE)
+            if node.control and done and old == NodeStatus.IDLE and node.inner.id in ticked:
+                transitions.append((node.uid, NodeStatus.RUNNING))
+                old = NodeStatus.RUNNING
             if py is not None and not reset:
                 if py != old:
                     transitions.append((node.uid, py))
                 self._state[node.uid] = py
                 self._code[node.uid] = int(py)
                 continue
-            ran = py in (NodeStatus.SUCCESS, NodeStatus.FAILURE) and (old != NodeStatus.IDLE or node.behaviour.id in ticked)
+            ran = done and (old != NodeStatus.IDLE or node.behaviour.id in ticked)
             if ran and py != old:
                 transitions.append((node.uid, py))
                 last = py

@@ -25,6 +25,7 @@ from chaser_bt.tree.model import SUBTREE_ID
 from chaser_bt.tree.node_model import _default as default_text
 from chaser_bt.tree.node_model import node_model_xml
 from chaser_bt.tree.ports import LiteralError, is_reference_text, literal_text
+from chaser_bt.tree.registry import NodeKind
 from chaser_bt.tree.validation import ResolvedNode
 from chaser_bt.tree.xml_format import FORMAT_VERSION
 from chaser_bt.tree.xml_format import _attributes as xml_attributes
@@ -36,11 +37,18 @@ _INDENT = "    "  # tinyxml2's XMLPrinter
 
 @dataclass(frozen=True)
 class MonitoredNode:
-    """One BT.CPP node: its uid, the behaviour whose status it shows, and its parent's uid (None: root)."""
+    """One BT.CPP node: its uid, the behaviour whose status it shows, and its parent's uid (None: root).
+
+    ``inner`` is the node itself under a pre-conditions wrapper (else ``behaviour``): ticked only when
+    the node really runs. ``control``: a control node or decorator (BT.CPP sets these RUNNING as
+    their tick starts).
+    """
 
     uid: int
     behaviour: py_trees.behaviour.Behaviour
     parent: int | None
+    inner: py_trees.behaviour.Behaviour
+    control: bool
 
 
 @dataclass(frozen=True)
@@ -106,8 +114,9 @@ class _Builder:
     ) -> None:
         self.uid += 1
         uid = self.uid
-        sub.nodes.append(MonitoredNode(uid, behaviour, parent))
         inner = behaviour.decorated if resolved.conditions else behaviour
+        control = resolved.node_type.kind in (NodeKind.CONTROL, NodeKind.DECORATOR)
+        sub.nodes.append(MonitoredNode(uid, behaviour, parent, inner, control))
         spec = resolved.spec
         assert spec is not None
         if spec.node_id == SUBTREE_ID and spec.subtree is not None:

@@ -1,0 +1,147 @@
+// Records what BehaviorTree.CPP's own Groot2Publisher answers for tree.xml, as a Groot2 client would ask.
+//
+// Usage: groot2_recorder TREE.xml OUT.json [PORT]
+// Registers Countdown (as tests/log/groot2_support.py writes it), builds the tree, starts
+// BT::Groot2Publisher on PORT (default 22667; PORT + 1 for its publisher), then on a REQ socket:
+// FULLTREE, STATUS, TOGGLE_RECORDING start; for each of 6 ticks: tickOnce, STATUS, GET_TRANSITIONS;
+// then the hook and error requests. Every request and reply part is written to OUT.json as hex.
+#include <behaviortree_cpp/bt_factory.h>
+#include <behaviortree_cpp/contrib/json.hpp>
+#include <behaviortree_cpp/loggers/groot2_protocol.h>
+#include <behaviortree_cpp/loggers/groot2_publisher.h>
+#include <zmq.hpp>
+#include <zmq_addon.hpp>
+
+#include <fstream>
+#include <iostream>
+#include <string>
+#include <vector>
+
+namespace
+{
+class Countdown : public BT::StatefulActionNode
+{
+public:
+  Countdown(const std::string& name, const BT::NodeConfig& config)
+    : BT::StatefulActionNode(name, config)
+  {}
+
+  static BT::PortsList providedPorts()
+  {
+    return { BT::InputPort<int>("ticks", 2, "ticks to stay RUNNING") };
+  }
+
+  BT::NodeStatus onStart() override
+  {
+    remaining_ = getInput<int>("ticks").value();
+    return onRunning();
+  }
+
+  BT::NodeStatus onRunning() override
+  {
+    if(remaining_ == 0)
+    {
+      return BT::NodeStatus::SUCCESS;
+    }
+    remaining_--;
+    return BT::NodeStatus::RUNNING;
+  }
+
+  void onHalted() override
+  {}
+
+private:
+  int remaining_ = 0;
+};
+
+std::string hex(const std::string& bytes)
+{
+  static const char* digits = "0123456789abcdef";
+  std::string out;
+  for(unsigned char c : bytes)
+  {
+    out += digits[c >> 4];
+    out += digits[c & 15];
+  }
+  return out;
+}
+}  // namespace
+
+int main(int argc, char** argv)
+{
+  if(argc < 3)
+  {
+    std::cerr << "usage: groot2_recorder TREE.xml OUT.json [PORT]\n";
+    return 2;
+  }
+  const unsigned port = argc > 3 ? std::stoul(argv[3]) : 22667;
+
+  BT::BehaviorTreeFactory factory;
+  factory.registerNodeType<Countdown>("Countdown");
+  auto tree = factory.createTreeFromFile(argv[1]);
+  BT::Groot2Publisher publisher(tree, port);
+
+  zmq::context_t context;
+  zmq::socket_t client(context, ZMQ_REQ);
+  client.set(zmq::sockopt::rcvtimeo, 5000);
+  client.connect("tcp://127.0.0.1:" + std::to_string(port));
+
+  nlohmann::json exchanges = nlohmann::json::array();
+  uint32_t next_id = 0x01020300;
+  auto ask = [&](const std::string& name, std::vector<std::string> parts) {
+    zmq::multipart_t request;
+    for(const auto& part : parts)
+    {
+      request.addstr(part);
+    }
+    request.send(client);
+    zmq::multipart_t reply;
+    if(!reply.recv(client))
+    {
+      throw std::runtime_error("no reply to " + name);
+    }
+    nlohmann::json entry;
+    entry["name"] = name;
+    entry["request"] = nlohmann::json::array();
+    for(const auto& part : parts)
+    {
+      entry["request"].push_back(hex(part));
+    }
+    entry["reply"] = nlohmann::json::array();
+    for(size_t i = 0; i < reply.size(); i++)
+    {
+      entry["reply"].push_back(hex(reply[i].to_string()));
+    }
+    exchanges.push_back(entry);
+  };
+  auto header = [&](BT::Monitor::RequestType type) {
+    BT::Monitor::RequestHeader h(type);
+    h.unique_id = next_id++;  // fixed ids, so the recording is reproducible
+    return BT::Monitor::SerializeHeader(h);
+  };
+  using RT = BT::Monitor::RequestType;
+
+  ask("fulltree", { header(RT::FULLTREE) });
+  ask("status_0", { header(RT::STATUS) });
+  ask("recording_start", { header(RT::TOGGLE_RECORDING), "start" });
+  for(int tick = 1; tick <= 6; tick++)
+  {
+    tree.tickOnce();
+    ask("status_" + std::to_string(tick), { header(RT::STATUS) });
+    ask("transitions_" + std::to_string(tick), { header(RT::GET_TRANSITIONS) });
+  }
+  ask("recording_stop", { header(RT::TOGGLE_RECORDING), "stop" });
+  ask("hooks_dump", { header(RT::HOOKS_DUMP) });
+  ask("remove_all_hooks", { header(RT::REMOVE_ALL_HOOKS) });
+  ask("disable_all_hooks", { header(RT::DISABLE_ALL_HOOKS) });
+  ask("hook_remove", { header(RT::HOOK_REMOVE), R"({"uid": 2, "position": 0})" });
+  ask("hook_remove_one_part", { header(RT::HOOK_REMOVE) });
+  ask("blackboard_one_part", { header(RT::BLACKBOARD) });
+  ask("unknown_type", { header(static_cast<RT>('Z')) });
+  ask("short_header", { std::string("\x02T\x01\x02\x03", 5) });
+
+  std::ofstream out(argv[2]);
+  out << exchanges.dump(1) << "\n";
+  std::cout << "wrote " << exchanges.size() << " exchanges to " << argv[2] << "\n";
+  return 0;
+}
