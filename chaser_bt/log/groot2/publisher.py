@@ -94,6 +94,8 @@ class Groot2Publisher:
         except zmq.ZMQError as exc:
             self._close_sockets()
             raise Groot2Error(f"cannot serve Groot2 on {host}:{port} and {port + 1}: {exc}") from None
+        #: The bound server and publisher endpoints (``tcp://127.0.0.1:1667``, ...).
+        self.endpoints = tuple(s.getsockopt_string(zmq.LAST_ENDPOINT) for s in (self._server, self._publisher))
         self.visitor = _TickVisitor(self)
         self._thread = threading.Thread(target=self._serve, name=f"groot2-{port}", daemon=True)
         self._thread.start()
