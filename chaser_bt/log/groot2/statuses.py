@@ -1,15 +1,19 @@
 """Node statuses as BT.CPP's Groot2 publisher reports them, mirrored from a py_trees tree after each tick.
 
-BT.CPP resets a node to IDLE when its parent finishes (``resetChildren``) and the root when the
-tree finishes (``tickRoot``); the publisher then shows ``10 + the status it had`` (12: idle after
-SUCCESS). A skipped node keeps its IDLE (BT.CPP never stores SKIPPED). py_trees leaves finished
-nodes at SUCCESS/FAILURE and a skipped one INVALID, so the mirror applies BT.CPP's rule itself:
-below a parent that is not RUNNING every node is IDLE. Which nodes were ticked (a py_trees visitor
-sees them) tells a node that ran and was reset in the same tick from one left over from an old run.
+BT.CPP resets a node to IDLE when its parent finishes (``resetChildren``), the root when the
+tree finishes (``tickRoot``), and, while a reactive node runs, every child of it but the running
+one; the publisher then shows ``10 + the status it had`` (12: idle after SUCCESS). A skipped node
+keeps its IDLE (BT.CPP never stores SKIPPED). py_trees leaves finished nodes at SUCCESS/FAILURE
+and a skipped one INVALID, so the mirror applies BT.CPP's rules itself: below a parent that is not
+RUNNING every node is IDLE, and so is every child of a running reactive node that is not RUNNING.
+Which nodes were ticked (a py_trees visitor sees them) tells a node that ran and was reset in the
+same tick from one left over from an old run.
 
 The transitions (for Groot2's recording) are the mirrored changes, stamped at the end of the tick,
 in uid order (BT.CPP's are in the order the callbacks fire); a control node or decorator that
 starts and finishes within one tick passes through RUNNING first, as BT.CPP's set themselves RUNNING.
+What BT.CPP re-runs within one tick (a Repeat or RetryUntilSuccessful looping over a child that
+finishes at once, the re-tick after a wake-up signal) shows only as its net change.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ class StatusMirror:
     def __init__(self, nodes: Sequence[MonitoredNode]) -> None:
         self.nodes = tuple(nodes)
         self._order = sorted(self.nodes, key=lambda n: n.uid)  # parents before children
+        self._reactive = {n.uid for n in self.nodes if n.reactive}
         self._state = {n.uid: NodeStatus.IDLE for n in self.nodes}  # BT.CPP's node status
         self._code = {n.uid: int(NodeStatus.IDLE) for n in self.nodes}  # what STATUS reports
 
@@ -47,7 +52,8 @@ class StatusMirror:
             if node.parent is None:
                 reset = py in (NodeStatus.SUCCESS, NodeStatus.FAILURE)  # tickRoot resets a finished root
             else:
-                reset = self._state[node.parent] != NodeStatus.RUNNING
+                parent = self._state[node.parent]
+                reset = parent != NodeStatus.RUNNING or (node.parent in self._reactive and py != NodeStatus.RUNNING)
             old = self._state[node.uid]
             done = py in (NodeStatus.SUCCESS, NodeStatus.FAILURE)
             if node.control and done and old == NodeStatus.IDLE and node.inner.id in ticked:

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import py_trees
 
 from chaser_bt.tree import MissionTree, Registry, default_registry
+from chaser_bt.tree.composites import ReactiveFallback, ReactiveSequence
 from chaser_bt.tree.model import SUBTREE_ID
 from chaser_bt.tree.node_model import _default as default_text
 from chaser_bt.tree.node_model import node_model_xml
@@ -41,7 +42,8 @@ class MonitoredNode:
 
     ``inner`` is the node itself under a pre-conditions wrapper (else ``behaviour``): ticked only when
     the node really runs. ``control``: a control node or decorator (BT.CPP sets these RUNNING as
-    their tick starts).
+    their tick starts). ``reactive``: a reactive control node (while one runs, BT.CPP resets every
+    child but the running one).
     """
 
     uid: int
@@ -49,6 +51,7 @@ class MonitoredNode:
     parent: int | None
     inner: py_trees.behaviour.Behaviour
     control: bool
+    reactive: bool = False
 
 
 @dataclass(frozen=True)
@@ -116,7 +119,8 @@ class _Builder:
         uid = self.uid
         inner = behaviour.decorated if resolved.conditions else behaviour
         control = resolved.node_type.kind in (NodeKind.CONTROL, NodeKind.DECORATOR)
-        sub.nodes.append(MonitoredNode(uid, behaviour, parent, inner, control))
+        reactive = issubclass(resolved.node_type.cls, (ReactiveSequence, ReactiveFallback))
+        sub.nodes.append(MonitoredNode(uid, behaviour, parent, inner, control, reactive))
         spec = resolved.spec
         assert spec is not None
         if spec.node_id == SUBTREE_ID and spec.subtree is not None:

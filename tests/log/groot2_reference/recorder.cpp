@@ -1,10 +1,11 @@
 // Records what BehaviorTree.CPP's own Groot2Publisher answers for tree.xml, as a Groot2 client would ask.
 //
-// Usage: groot2_recorder TREE.xml OUT.json [PORT]
-// Registers Countdown (as tests/log/groot2_support.py writes it), builds the tree, starts
+// Usage: groot2_recorder TREE.xml OUT.json [PORT [TICKS]]
+// Registers Countdown and Tally (as tests/log/groot2_support.py writes them), builds the tree, starts
 // BT::Groot2Publisher on PORT (default 22667; PORT + 1 for its publisher), then on a REQ socket:
-// FULLTREE, STATUS, TOGGLE_RECORDING start; for each of 6 ticks: tickOnce, STATUS, GET_TRANSITIONS;
-// then the hook and error requests. Every request and reply part is written to OUT.json as hex.
+// FULLTREE, STATUS, TOGGLE_RECORDING start; for each of TICKS ticks (default 6): tickOnce, STATUS,
+// GET_TRANSITIONS; then the hook and error requests. Every request and reply part is written to
+// OUT.json as hex.
 #include <behaviortree_cpp/bt_factory.h>
 #include <behaviortree_cpp/contrib/json.hpp>
 #include <behaviortree_cpp/loggers/groot2_protocol.h>
@@ -54,6 +55,25 @@ private:
   int remaining_ = 0;
 };
 
+class Tally : public BT::SyncActionNode
+{
+public:
+  Tally(const std::string& name, const BT::NodeConfig& config) : BT::SyncActionNode(name, config)
+  {}
+
+  static BT::PortsList providedPorts()
+  {
+    return { BT::InputPort<int>("add", 1, "amount to add"),
+             BT::OutputPort<int>("total", "{tally}", "the amount, written") };
+  }
+
+  BT::NodeStatus tick() override
+  {
+    setOutput("total", getInput<int>("add").value());
+    return BT::NodeStatus::SUCCESS;
+  }
+};
+
 std::string hex(const std::string& bytes)
 {
   static const char* digits = "0123456789abcdef";
@@ -75,9 +95,11 @@ int main(int argc, char** argv)
     return 2;
   }
   const unsigned port = argc > 3 ? std::stoul(argv[3]) : 22667;
+  const int ticks = argc > 4 ? std::stoi(argv[4]) : 6;
 
   BT::BehaviorTreeFactory factory;
   factory.registerNodeType<Countdown>("Countdown");
+  factory.registerNodeType<Tally>("Tally");
   auto tree = factory.createTreeFromFile(argv[1]);
   BT::Groot2Publisher publisher(tree, port);
 
@@ -124,7 +146,7 @@ int main(int argc, char** argv)
   ask("fulltree", { header(RT::FULLTREE) });
   ask("status_0", { header(RT::STATUS) });
   ask("recording_start", { header(RT::TOGGLE_RECORDING), "start" });
-  for(int tick = 1; tick <= 6; tick++)
+  for(int tick = 1; tick <= ticks; tick++)
   {
     tree.tickOnce();
     ask("status_" + std::to_string(tick), { header(RT::STATUS) });
