@@ -164,7 +164,7 @@ def _ports(resolved: ResolvedNode) -> dict[str, str]:
     for direction, ports in ((0, node_type.input_ports), (1, node_type.output_ports)):
         for port, declaration in ports.items():
             default = default_text(declaration)
-            if port in out or default is None:
+            if port in out or not default:  # BT.CPP adds only non-empty default strings
                 continue
             if direction == 0 or is_reference_text(default):
                 out[port] = default
