@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -64,3 +65,27 @@ def ticked_bt(tree: MissionTree, *visitors: Any) -> py_trees.trees.BehaviourTree
         bt.add_visitor(visitor)
     bt.setup()
     return bt
+
+
+def models_json(reg: Registry) -> str:
+    """The nodes BT.CPP does not have, for ``groot2_recorder --fulltree``: kind, ports with their defaults."""
+    from chaser_bt.tree.node_model import BTCPP_BUILTIN_NODES
+    from chaser_bt.tree.node_model import _default as default_text
+
+    out = {}
+    for node_id in reg.ids():
+        if node_id in BTCPP_BUILTIN_NODES:
+            continue
+        node = reg.get(node_id)
+        ports = [{"name": name, "direction": direction, "default": default_text(port),
+                  "description": port.description or ""}
+                 for direction, group in (("input", node.input_ports), ("output", node.output_ports))
+                 for name, port in group.items()]
+        out[node_id] = {"kind": node.kind.value, "ports": ports}
+    return json.dumps(out, indent=1, sort_keys=True) + "\n"
+
+
+if __name__ == "__main__":  # python tests/log/groot2_support.py > models.json: the default registry's nodes
+    from chaser_bt.tree import default_registry
+
+    print(models_json(default_registry()), end="")

@@ -7,8 +7,10 @@ instance as it is met, and the STATUS payload walks subtree after subtree, each 
 one ``<BehaviorTree ID _fullpath>`` per instance, every node with ``name`` (SubTree: ``ID`` and
 ``_fullpath``), ``_uid``, its input ports as written plus the defaults of those not written, output
 ports, pre-conditions; then the ``<TreeNodesModel>`` of every registered node, built-ins included.
-The node model is :func:`chaser_bt.tree.node_model.node_model_xml`'s, the attribute text
-:mod:`chaser_bt.tree.xml_format`'s; only the tinyxml2 layout (4-space indent, no declaration) is here.
+The node model is :func:`chaser_bt.tree.node_model.node_model_xml`'s, literals become text as
+:func:`chaser_bt.tree.conversion.textual_document` writes them (so a YAML tree reads as its XML twin),
+attributes are escaped by :mod:`chaser_bt.tree.xml_format`; only the tinyxml2 layout (4-space indent,
+no declaration) is here.
 
 A node with pre-conditions is one BT.CPP node but two py_trees behaviours here (the
 :class:`~chaser_bt.tree.preconditions.Preconditions` wrapper around it): the wrapper carries the uid.
@@ -22,7 +24,8 @@ import py_trees
 
 from chaser_bt.tree import MissionTree, Registry, default_registry
 from chaser_bt.tree.composites import ReactiveFallback, ReactiveSequence
-from chaser_bt.tree.model import SUBTREE_ID
+from chaser_bt.tree.conversion import textual_document
+from chaser_bt.tree.model import SUBTREE_ID, NodeSpec, TreeDocument, TreeSpec
 from chaser_bt.tree.node_model import _default as default_text
 from chaser_bt.tree.node_model import node_model_xml
 from chaser_bt.tree.ports import LiteralError, is_reference_text, literal_text
@@ -87,21 +90,57 @@ def describe_tree(tree: MissionTree, registry: Registry | None = None) -> Monito
     """
     if tree.resolved is None:
         raise ValueError("the tree has no resolved nodes: load it with chaser_bt.tree.load_tree")
-    builder = _Builder()
+    registry = registry if registry is not None else default_registry()
+    builder = _Builder(_textual_specs(tree.name, tree.resolved, registry))
     builder.subtree(tree.name, "", tree.resolved, tree.root, None)
     lines = [f"<root{xml_attributes({'BTCPP_format': FORMAT_VERSION})}>"]
     for sub in builder.subtrees:
         _write(sub.element, 1, lines)
-    lines += _model_lines(registry if registry is not None else default_registry())
+    lines += _model_lines(registry)
     lines.append("</root>")
     nodes = tuple(node for sub in builder.subtrees for node in sub.nodes)
     return MonitoredTree("\n".join(lines) + "\n", nodes)
 
 
+def _textual_specs(main: str, root: ResolvedNode, registry: Registry) -> dict[int, NodeSpec]:
+    """id(node as written) -> the same node with its literals as BT.CPP attribute text.
+
+    :func:`~chaser_bt.tree.conversion.textual_document` does the typing (a SubTree's literal by the
+    ports that read it), on a document of the trees ``root`` instantiates.
+    """
+    trees: dict[str, TreeSpec] = {}
+    pending = [(main, root)]
+    while pending:
+        tree_id, top = pending.pop()
+        assert top.spec is not None
+        if tree_id in trees:
+            continue
+        trees[tree_id] = TreeSpec(tree_id, top.spec, top.spec.location)
+        stack = [top]
+        while stack:
+            node = stack.pop()
+            if node.spec is not None and node.spec.subtree is not None and node.children:
+                pending.append((node.spec.subtree.tree_id, node.children[0]))
+            else:
+                stack.extend(node.children)
+    textual = textual_document(TreeDocument(source="", trees=trees), registry)
+    return {id(a): b for tree_id, spec in trees.items() for a, b in zip(_walk(spec.root), _walk(textual.trees[tree_id].root))}
+
+
+def _walk(node: NodeSpec | None) -> list[NodeSpec]:
+    out, stack = [], [node] if node is not None else []
+    while stack:
+        current = stack.pop()
+        out.append(current)
+        stack.extend(reversed(current.children))
+    return out
+
+
 class _Builder:
-    def __init__(self) -> None:
+    def __init__(self, texts: dict[int, NodeSpec]) -> None:
         self.subtrees: list[_Subtree] = []
         self.uid = 0
+        self.texts = texts
 
     def subtree(
         self, tree_id: str, instance: str, resolved: ResolvedNode, behaviour: py_trees.behaviour.Behaviour,
@@ -130,7 +169,7 @@ class _Builder:
             attrs = {"ID": tree_id, "_fullpath": path, "_uid": str(uid)}
         else:
             attrs = {"name": resolved.name, "_uid": str(uid)}
-        attrs.update(_ports(resolved))
+        attrs.update(_ports(resolved, self.texts.get(id(spec), spec)))
         attrs.update({kind: str(arg.value) for kind, arg in spec.conditions.items()})
         element = _Element(spec.node_id, attrs)
         parent_element.children.append(element)
@@ -144,8 +183,9 @@ class _Builder:
             self.node(child_resolved, child, sub, element, uid, prefix)
 
 
-def _ports(resolved: ResolvedNode) -> dict[str, str]:
-    """BT.CPP's ``config().input_ports`` then ``output_ports``: as written, then the defaults of the rest."""
+def _ports(resolved: ResolvedNode, textual: NodeSpec) -> dict[str, str]:
+    """BT.CPP's ``config().input_ports`` then ``output_ports``: as written (XML text as it is, other
+    literals as ``textual`` writes them), then the defaults of the rest."""
     spec = resolved.spec
     assert spec is not None
     node_type = resolved.node_type
@@ -153,6 +193,10 @@ def _ports(resolved: ResolvedNode) -> dict[str, str]:
     for port, arg in spec.ports.items():
         if arg.from_text or is_reference_text(arg.value):
             out[port] = str(arg.value)
+            continue
+        text = textual.ports[port]
+        if text.from_text:
+            out[port] = str(text.value)
             continue
         declaration = node_type.port(port)
         try:

@@ -6,6 +6,11 @@
 // FULLTREE, STATUS, TOGGLE_RECORDING start; for each of TICKS ticks (default 6): tickOnce, STATUS,
 // GET_TRANSITIONS; then the hook and error requests. Every request and reply part is written to
 // OUT.json as hex.
+//
+// Usage: groot2_recorder --fulltree TREE.xml MODELS.json OUT.xml [PORT]
+// Registers a stand-in for every node in MODELS.json (`python tests/log/groot2_support.py`: chaser-bt's
+// own nodes with their kinds and ports), builds TREE.xml (its includes too) and writes the FULLTREE
+// reply's XML to OUT.xml as it came.
 #include <behaviortree_cpp/bt_factory.h>
 #include <behaviortree_cpp/contrib/json.hpp>
 #include <behaviortree_cpp/loggers/groot2_protocol.h>
@@ -87,11 +92,84 @@ std::string hex(const std::string& bytes)
 }
 }  // namespace
 
+std::string askFullTree(unsigned port)
+{
+  zmq::context_t context;
+  zmq::socket_t client(context, ZMQ_REQ);
+  client.set(zmq::sockopt::rcvtimeo, 5000);
+  client.connect("tcp://127.0.0.1:" + std::to_string(port));
+  BT::Monitor::RequestHeader header(BT::Monitor::RequestType::FULLTREE);
+  zmq::multipart_t request;
+  request.addstr(BT::Monitor::SerializeHeader(header));
+  request.send(client);
+  zmq::multipart_t reply;
+  if(!reply.recv(client) || reply.size() != 2)
+  {
+    throw std::runtime_error("no FULLTREE reply");
+  }
+  return reply[1].to_string();
+}
+
+int recordFullTree(const std::string& tree_path, const std::string& models_path,
+                   const std::string& out_path, unsigned port)
+{
+  std::ifstream models_file(models_path);
+  const auto models = nlohmann::json::parse(models_file);
+  BT::BehaviorTreeFactory factory;
+  for(const auto& [id, model] : models.items())
+  {
+    BT::PortsList ports;
+    for(const auto& port_model : model.at("ports"))
+    {
+      const auto name = port_model.at("name").get<std::string>();
+      const auto description = port_model.at("description").get<std::string>();
+      const bool input = port_model.at("direction") == "input";
+      if(port_model.at("default").is_null())
+      {
+        ports.insert(input ? BT::InputPort<BT::AnyTypeAllowed>(name, description) :
+                             BT::OutputPort<BT::AnyTypeAllowed>(name, description));
+      }
+      else
+      {
+        const auto value = port_model.at("default").get<std::string>();
+        ports.insert(input ? BT::InputPort<BT::AnyTypeAllowed>(name, value, description) :
+                             BT::OutputPort<BT::AnyTypeAllowed>(name, value, description));
+      }
+    }
+    const auto kind = model.at("kind").get<std::string>();
+    if(kind == "Decorator")
+    {
+      factory.registerSimpleDecorator(
+          id, [](BT::NodeStatus status, BT::TreeNode&) { return status; }, ports);
+    }
+    else if(kind == "Condition")
+    {
+      factory.registerSimpleCondition(
+          id, [](BT::TreeNode&) { return BT::NodeStatus::SUCCESS; }, ports);
+    }
+    else
+    {
+      factory.registerSimpleAction(
+          id, [](BT::TreeNode&) { return BT::NodeStatus::SUCCESS; }, ports);
+    }
+  }
+  auto tree = factory.createTreeFromFile(tree_path);
+  BT::Groot2Publisher publisher(tree, port);
+  std::ofstream(out_path) << askFullTree(port);
+  std::cout << "wrote the FULLTREE of " << tree_path << " to " << out_path << "\n";
+  return 0;
+}
+
 int main(int argc, char** argv)
 {
+  if(argc >= 5 && std::string(argv[1]) == "--fulltree")
+  {
+    return recordFullTree(argv[2], argv[3], argv[4], argc > 5 ? std::stoul(argv[5]) : 22667);
+  }
   if(argc < 3)
   {
-    std::cerr << "usage: groot2_recorder TREE.xml OUT.json [PORT]\n";
+    std::cerr << "usage: groot2_recorder TREE.xml OUT.json [PORT [TICKS]]\n"
+                 "       groot2_recorder --fulltree TREE.xml MODELS.json OUT.xml [PORT]\n";
     return 2;
   }
   const unsigned port = argc > 3 ? std::stoul(argv[3]) : 22667;
