@@ -18,6 +18,8 @@ REFERENCE = Path(__file__).parent / "groot2_reference"
 TREE_XML = REFERENCE / "tree.xml"
 #: More control nodes and decorators, ports with default remappings, a SubTree with a remapping.
 SEMANTICS_XML = REFERENCE / "semantics.xml"
+#: Halts: a ``_while`` turning false, a Parallel failing with a child running, a ReactiveFallback.
+HALTS_XML = REFERENCE / "halts.xml"
 
 
 class Countdown(py_trees.ports.BehaviourWithPorts, register=False):

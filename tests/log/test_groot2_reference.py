@@ -12,8 +12,8 @@ be the same bytes after normalising only what is random, a clock reading or unor
   their net effect, each node's sequence with its loops erased: BT.CPP re-runs nodes within one tick
   (Repeat over a child that finishes at once; the re-tick after a wake-up signal), the mirror sees
   the end of the tick only;
-- FULLTREE: the trees before ``<TreeNodesModel>`` byte for byte for tree.xml (one port per node);
-  for semantics.xml element by element with attributes as a mapping (BT.CPP writes ports in its
+- FULLTREE: the trees before ``<TreeNodesModel>`` byte for byte for tree.xml and halts.xml; for
+  semantics.xml element by element with attributes as a mapping (BT.CPP writes ports in its
   ``unordered_map`` order). The node model is compared for the nodes the tree uses, without
   ``<MetadataFields>`` (ours carry the docstring) and, for BT.CPP's built-in nodes, without the port
   descriptions (ours are worded afresh): kinds, port names, directions, types and defaults agree.
@@ -35,7 +35,7 @@ import pytest
 from chaser_bt.log.groot2 import Groot2Publisher
 
 from groot2_client import Client, free_port_pair
-from groot2_support import SEMANTICS_XML, TREE_XML, reference_tree, ticked_bt
+from groot2_support import HALTS_XML, SEMANTICS_XML, TREE_XML, reference_tree, ticked_bt
 
 DATA = Path(__file__).parent / "data" / "groot2"
 
@@ -50,14 +50,15 @@ class Exchange:
 
 @dataclass(frozen=True)
 class Replay:
-    exact: bool  # tree.xml: byte-exact tree text and transitions; semantics.xml: see the module docstring
+    exact: bool  # byte-exact tree text and per-node transitions (tree.xml, halts.xml); else see the docstring
     ticks: int
     tree_id: bytes
     exchanges: dict[str, Exchange]
 
 
 CASES = {"tree": (TREE_XML, DATA / "btcpp_replies.json", True, 6),
-         "semantics": (SEMANTICS_XML, DATA / "btcpp_semantics.json", False, 14)}
+         "semantics": (SEMANTICS_XML, DATA / "btcpp_semantics.json", False, 14),
+         "halts": (HALTS_XML, DATA / "btcpp_halts.json", True, 10)}
 
 
 @pytest.fixture(scope="module", params=sorted(CASES))
