@@ -25,7 +25,7 @@ import py_trees
 from chaser_bt.tree import MissionTree, Registry, default_registry
 from chaser_bt.tree.composites import ReactiveFallback, ReactiveSequence
 from chaser_bt.tree.conversion import textual_document
-from chaser_bt.tree.model import SUBTREE_ID, NodeSpec, TreeDocument, TreeSpec
+from chaser_bt.tree.model import PRECONDITIONS, SUBTREE_ID, NodeSpec, TreeDocument, TreeSpec
 from chaser_bt.tree.node_model import _default as default_text
 from chaser_bt.tree.node_model import node_model_xml
 from chaser_bt.tree.ports import LiteralError, is_reference_text, literal_text
@@ -170,7 +170,7 @@ class _Builder:
         else:
             attrs = {"name": resolved.name, "_uid": str(uid)}
         attrs.update(_ports(resolved, self.texts.get(id(spec), spec)))
-        attrs.update({kind: str(arg.value) for kind, arg in spec.conditions.items()})
+        attrs.update({kind: str(spec.conditions[kind].value) for kind in PRECONDITIONS if kind in spec.conditions})
         element = _Element(spec.node_id, attrs)
         parent_element.children.append(element)
         if spec.node_id == SUBTREE_ID and spec.subtree is not None:
