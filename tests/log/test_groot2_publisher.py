@@ -133,11 +133,20 @@ def test_breakpoints_are_refused_and_unknown_requests_answer_errors(served):
     _, reply = client.ask("I", b'{"uid": 2, "position": 0, "enabled": true, "mode": 0, "once": false, '
                                b'"desired_status": "SUCCESS"}')
     assert reply[0] == b"error" and b"breakpoints are not supported" in reply[1]
-    assert client.ask("B", b"Main")[1][0] == b"error"
+    assert client.ask("B")[1] == [b"error", b"must be 2 parts message"]
     assert client.ask("Q")[1] == [b"error", b"Request not recognized"]
     assert client.ask_raw([b"\x02S"]) == [b"error", b"wrong request header"]
     assert client.ask("D")[1][1] == b"[]"
     assert client.ask("S")[1][1]  # still serving
+
+
+def test_blackboard_reply_holds_the_wired_entries(served):
+    tree, publisher, client = served
+    bt = ticked_bt(tree, publisher.visitor)
+    bt.tick()
+    # {"Main": null}: the reference tree wires no port to the blackboard (msgpack: map of 1, fixstr, nil)
+    assert client.ask("B", b"Main;nope")[1][1] == b"\x81\xa4Main\xc0"
+    assert client.ask("B", b"nope")[1][1] == b"\xc0"
 
 
 def test_bound_to_loopback_unless_asked(served):

@@ -18,7 +18,8 @@ be the same bytes after normalising only what is random, a clock reading or unor
   ``<MetadataFields>`` (ours carry the docstring) and, for BT.CPP's built-in nodes, without the port
   descriptions (ours are worded afresh): kinds, port names, directions, types and defaults agree.
 
-The STATUS payload, what Groot2 paints the tree with, is compared byte for byte after every tick.
+The STATUS payload, what Groot2 paints the tree with, is compared byte for byte after every tick; so
+is the BLACKBOARD reply (msgpack) after the last.
 """
 
 from __future__ import annotations
@@ -188,9 +189,9 @@ def test_recording_start_answers_the_wall_time(replay):
     assert len(e.ours[1]) == len(e.theirs[1]) == 16  # microseconds since 1970: 16 digits until 2286
 
 
-@pytest.mark.parametrize("name", ["recording_stop", "hooks_dump", "remove_all_hooks", "disable_all_hooks",
-                                  "hook_remove", "hook_remove_one_part", "blackboard_one_part", "unknown_type",
-                                  "short_header"])
+@pytest.mark.parametrize("name", ["recording_stop", "blackboard", "blackboard_unknown", "hooks_dump", "remove_all_hooks",
+                                  "disable_all_hooks", "hook_remove", "hook_remove_one_part", "blackboard_one_part",
+                                  "unknown_type", "short_header"])
 def test_other_replies_are_byte_identical(replay, name):
     e = replay.exchanges[name]
     assert e.ours[1:] == e.theirs[1:]

@@ -2,8 +2,8 @@
 
 :mod:`~chaser_bt.log.groot2.protocol` is the wire format, :mod:`~chaser_bt.log.groot2.tree_xml`
 numbers the nodes and writes the tree as BT.CPP does, :mod:`~chaser_bt.log.groot2.statuses`
-mirrors py_trees statuses into BT.CPP's, :mod:`~chaser_bt.log.groot2.publisher` serves them
-(docs/logs.md, "Attaching Groot2").
+mirrors py_trees statuses into BT.CPP's, :mod:`~chaser_bt.log.groot2.blackboard` writes the
+blackboard reply, :mod:`~chaser_bt.log.groot2.publisher` serves them (docs/logs.md, "Attaching Groot2").
 """
 
 from chaser_bt.log.groot2.protocol import DEFAULT_PORT

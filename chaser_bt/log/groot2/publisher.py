@@ -8,8 +8,9 @@ nothing it does waits on Groot2; an error in the monitor is logged and the fligh
 Differences from BT.CPP 4.10, on purpose: the sockets are bound to loopback unless another
 address is asked for (BT.CPP binds every interface); breakpoints and node replacement
 (HOOK_INSERT) are refused, since a flying tree must never be paused or have a node's result
-replaced from the ground, so the hook requests answer as BT.CPP does with no hooks installed;
-BLACKBOARD answers an error (no blackboard view yet).
+replaced from the ground, so the hook requests answer as BT.CPP does with no hooks installed.
+BLACKBOARD reads py_trees' blackboard from the server thread (a value being replaced by the tick
+is read before or after, never half-written: the blackboard is a dict under the GIL).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from typing import Any
 
 import py_trees
 
+from chaser_bt.log.groot2.blackboard import blackboard_reply
 from chaser_bt.log.groot2.protocol import (
     DEFAULT_PORT,
     ProtocolError,
@@ -150,7 +152,12 @@ class Groot2Publisher:
                     RequestType.TOGGLE_RECORDING, RequestType.BLACKBOARD) and len(parts) != 2:
             return error_reply("must be 2 parts message")
         if kind == RequestType.BLACKBOARD:
-            return error_reply("the blackboard view is not available in chaser-bt's monitor")
+            names = bytes(parts[1]).decode("utf-8", errors="replace").split(";")
+            storage = py_trees.blackboard.Blackboard.storage
+            try:
+                return [header, blackboard_reply(names, self.description.scopes, storage, self.description.main)]
+            except ValueError as exc:
+                return error_reply(str(exc))
         if kind == RequestType.HOOK_INSERT:
             return error_reply("breakpoints are not supported: chaser-bt never pauses a flying tree")
         if kind in (RequestType.HOOK_REMOVE, RequestType.BREAKPOINT_UNLOCK):

@@ -59,10 +59,16 @@ class MonitoredNode:
 
 @dataclass(frozen=True)
 class MonitoredTree:
-    """The FULLTREE XML and the nodes in STATUS order."""
+    """The FULLTREE XML, the nodes in STATUS order, the main tree's ID and the blackboard scopes by BT.CPP's names.
+
+    ``scopes``: subtree name (the main tree's ID, else the instance path) -> {entry: absolute key},
+    an entry for every blackboard key a port is wired to, in the scope that owns it.
+    """
 
     xml: str
     nodes: tuple[MonitoredNode, ...]
+    main: str = ""
+    scopes: dict[str, dict[str, str]] = field(default_factory=dict)
 
 
 @dataclass
@@ -76,6 +82,7 @@ class _Element:
 class _Subtree:
     tree_id: str
     instance_name: str
+    namespace: str
     element: _Element
     nodes: list[MonitoredNode] = field(default_factory=list)
 
@@ -99,7 +106,18 @@ def describe_tree(tree: MissionTree, registry: Registry | None = None) -> Monito
     lines += _model_lines(registry)
     lines.append("</root>")
     nodes = tuple(node for sub in builder.subtrees for node in sub.nodes)
-    return MonitoredTree("\n".join(lines) + "\n", nodes)
+    return MonitoredTree("\n".join(lines) + "\n", nodes, tree.name, _scopes(builder.subtrees, builder.keys))
+
+
+def _scopes(subtrees: list[_Subtree], keys: set[str]) -> dict[str, dict[str, str]]:
+    """Each wired key in the deepest subtree scope that holds it, named as in that scope."""
+    scopes: dict[str, dict[str, str]] = {sub.instance_name or sub.tree_id: {} for sub in subtrees}
+    for key in sorted(keys):
+        owner = max((sub for sub in subtrees if sub.namespace == "/" or key.startswith(sub.namespace + "/")),
+                    key=lambda sub: len(sub.namespace), default=None)
+        if owner is not None:
+            scopes[owner.instance_name or owner.tree_id][key[len(owner.namespace.rstrip("/")) + 1:]] = key
+    return scopes
 
 
 def _textual_specs(main: str, root: ResolvedNode, registry: Registry) -> dict[int, NodeSpec]:
@@ -141,12 +159,14 @@ class _Builder:
         self.subtrees: list[_Subtree] = []
         self.uid = 0
         self.texts = texts
+        self.keys: set[str] = set()
 
     def subtree(
         self, tree_id: str, instance: str, resolved: ResolvedNode, behaviour: py_trees.behaviour.Behaviour,
         parent: int | None,
     ) -> None:
-        sub = _Subtree(tree_id, instance, _Element("BehaviorTree", {"ID": tree_id, "_fullpath": instance}))
+        element = _Element("BehaviorTree", {"ID": tree_id, "_fullpath": instance})
+        sub = _Subtree(tree_id, instance, resolved.namespace, element)
         self.subtrees.append(sub)
         self.node(resolved, behaviour, sub, sub.element, parent, instance + "/" if instance else "")
 
@@ -160,6 +180,7 @@ class _Builder:
         control = resolved.node_type.kind in (NodeKind.CONTROL, NodeKind.DECORATOR)
         reactive = issubclass(resolved.node_type.cls, (ReactiveSequence, ReactiveFallback))
         sub.nodes.append(MonitoredNode(uid, behaviour, parent, inner, control, reactive))
+        self.keys.update(resolved.remappings.values())
         spec = resolved.spec
         assert spec is not None
         if spec.node_id == SUBTREE_ID and spec.subtree is not None:

@@ -4,7 +4,7 @@
 // Registers Countdown and Tally (as tests/log/groot2_support.py writes them), builds the tree, starts
 // BT::Groot2Publisher on PORT (default 22667; PORT + 1 for its publisher), then on a REQ socket:
 // FULLTREE, STATUS, TOGGLE_RECORDING start; for each of TICKS ticks (default 6): tickOnce, STATUS,
-// GET_TRANSITIONS; then the hook and error requests. Every request and reply part is written to
+// GET_TRANSITIONS; then BLACKBOARD, the hook and error requests. Every request and reply part is written to
 // OUT.json as hex.
 //
 // Usage: groot2_recorder --fulltree TREE.xml MODELS.json OUT.xml [PORT]
@@ -236,6 +236,8 @@ int main(int argc, char** argv)
   ask("disable_all_hooks", { header(RT::DISABLE_ALL_HOOKS) });
   ask("hook_remove", { header(RT::HOOK_REMOVE), R"({"uid": 2, "position": 0})" });
   ask("hook_remove_one_part", { header(RT::HOOK_REMOVE) });
+  ask("blackboard", { header(RT::BLACKBOARD), "Main;tail;outbound;nope" });
+  ask("blackboard_unknown", { header(RT::BLACKBOARD), "nope" });
   ask("blackboard_one_part", { header(RT::BLACKBOARD) });
   ask("unknown_type", { header(static_cast<RT>('Z')) });
   ask("short_header", { std::string("\x02T\x01\x02\x03", 5) });
