@@ -269,3 +269,48 @@ def test_groot2_port_defaults_to_btcpps(monkeypatch):
                                         "--groot2-host", "0.0.0.0"])
     assert (args.groot2, args.groot2_host) == (5000, "0.0.0.0")
     assert _parser(["run"]).parse_args(["run", "t.xml", "--connect", "tcp:h:1"]).groot2 is None
+
+
+def test_run_serves_groot2_while_flying_the_simulator(tmp_path, capsys):
+    from sitl.scenario import load_scenario
+    from sitl.server import serve
+
+    path = tmp_path / "hold.xml"
+    path.write_text(HOLD.replace('duration_s="30"', 'duration_s="20"'))
+    urls: list[str] = []
+    ready = threading.Event()
+    stop = threading.Event()
+
+    def on_ready(found: list[str]) -> None:
+        urls.extend(found)
+        ready.set()
+
+    sim = threading.Thread(target=serve, args=(load_scenario(SCENARIO),),
+                           kwargs=dict(speedup=10.0, tcp_port=0, udp_port=0, ready=on_ready, stop=stop))
+    sim.start()
+    port = free_port_pair()
+    result = {}
+    try:
+        assert ready.wait(30)
+        url = next(u for u in urls if u.startswith("tcp:"))
+        flight = threading.Thread(target=lambda: result.update(code=main(
+            ["run", str(path), "--connect", url, "--groot2", str(port)])))
+        flight.start()
+        client = Client(port)
+        try:
+            uids = _uids(client.ask("T")[1][1])
+            seen = []
+            while flight.is_alive() and 1 not in seen:
+                seen.append(statuses(client.ask("S")[1][1])[uids["/wait"]])
+                time.sleep(0.01)
+        finally:
+            client.close()
+            flight.join(60)
+    finally:
+        stop.set()
+        sim.join(30)
+    assert result["code"] == 0, capsys.readouterr()
+    assert 1 in seen
+    for p in (port, port + 1):
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", p))
