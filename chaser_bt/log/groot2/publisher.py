@@ -86,6 +86,7 @@ class Groot2Publisher:
         self._record_start_us = 0
         self._transitions: collections.deque[Transition] = collections.deque(maxlen=MAX_TRANSITIONS)
         self._stop = threading.Event()
+        self._faults = 0
         self._zmq = zmq
         self._context = zmq.Context()
         self._server = self._socket(zmq.REP)
@@ -125,7 +126,11 @@ class Groot2Publisher:
                     since = now_us - self._record_start_us
                     self._transitions.extend(Transition(since, uid, int(status)) for uid, status in changes)
         except Exception:
-            log.exception("Groot2 monitor: status update failed (the flight goes on)")
+            self._faults += 1
+            if self._faults == 1:  # once with the traceback, not at every tick
+                log.exception("Groot2 monitor: status update failed (the flight goes on; Groot2's view stops)")
+            else:
+                log.debug("Groot2 monitor: status update failed again (%d times)", self._faults)
 
     def status_payload(self) -> bytes:
         """The current STATUS payload (what a STATUS request would get)."""
