@@ -20,6 +20,8 @@ TREE_XML = REFERENCE / "tree.xml"
 SEMANTICS_XML = REFERENCE / "semantics.xml"
 #: Halts: a ``_while`` turning false, a Parallel failing with a child running, a ReactiveFallback.
 HALTS_XML = REFERENCE / "halts.xml"
+#: Decorators that reset a finished child and carry on (KeepRunningUntilFailure, Retry, Repeat), RunOnce.
+DECORATORS_XML = REFERENCE / "decorators.xml"
 
 
 class Countdown(py_trees.ports.BehaviourWithPorts, register=False):

@@ -9,11 +9,10 @@ be the same bytes after normalising only what is random, a clock reading or unor
 - the TOGGLE_RECORDING ``start`` reply, the wall time in microseconds (both must be decimal text);
 - the GET_TRANSITIONS timestamps; transitions are compared node by node in order (BT.CPP lists a
   tick's transitions in callback order, ours in uid order). For semantics.xml they are compared by
-  their net effect, each node's sequence with its loops erased: BT.CPP re-runs nodes within one tick
-  (Repeat over a child that finishes at once; the re-tick after a wake-up signal), the mirror sees
-  the end of the tick only;
-- FULLTREE: the trees before ``<TreeNodesModel>`` byte for byte for tree.xml and halts.xml; for
-  semantics.xml element by element with attributes as a mapping (BT.CPP writes ports in its
+  their net effect, each node's sequence with its loops erased: there BT.CPP ticks the root twice in
+  one ``tickOnce`` (the re-tick after a wake-up signal), py_trees once;
+- FULLTREE: the trees before ``<TreeNodesModel>`` byte for byte, but for semantics.xml element by
+  element with attributes as a mapping (BT.CPP writes ports in its
   ``unordered_map`` order). The node model is compared for the nodes the tree uses, without
   ``<MetadataFields>`` (ours carry the docstring) and, for BT.CPP's built-in nodes, without the port
   descriptions (ours are worded afresh): kinds, port names, directions, types and defaults agree.
@@ -36,7 +35,7 @@ import pytest
 from chaser_bt.log.groot2 import Groot2Publisher
 
 from groot2_client import Client, free_port_pair
-from groot2_support import HALTS_XML, SEMANTICS_XML, TREE_XML, reference_tree, ticked_bt
+from groot2_support import DECORATORS_XML, HALTS_XML, SEMANTICS_XML, TREE_XML, reference_tree, ticked_bt
 
 DATA = Path(__file__).parent / "data" / "groot2"
 
@@ -51,7 +50,7 @@ class Exchange:
 
 @dataclass(frozen=True)
 class Replay:
-    exact: bool  # byte-exact tree text and per-node transitions (tree.xml, halts.xml); else see the docstring
+    exact: bool  # byte-exact tree text and per-node transitions (all but semantics.xml: see the docstring)
     ticks: int
     tree_id: bytes
     exchanges: dict[str, Exchange]
@@ -59,7 +58,8 @@ class Replay:
 
 CASES = {"tree": (TREE_XML, DATA / "btcpp_replies.json", True, 6),
          "semantics": (SEMANTICS_XML, DATA / "btcpp_semantics.json", False, 14),
-         "halts": (HALTS_XML, DATA / "btcpp_halts.json", True, 10)}
+         "halts": (HALTS_XML, DATA / "btcpp_halts.json", True, 10),
+         "decorators": (DECORATORS_XML, DATA / "btcpp_decorators.json", True, 12)}
 
 
 @pytest.fixture(scope="module", params=sorted(CASES))

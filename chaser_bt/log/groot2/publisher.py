@@ -20,7 +20,7 @@ import logging
 import threading
 import time
 import uuid
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import py_trees
@@ -111,7 +111,7 @@ class Groot2Publisher:
         """Follow ``runner``'s ticks (a :class:`~chaser_bt.mission.runner.MissionRunner`)."""
         runner.add_visitor(self.visitor)
 
-    def tick_done(self, ticked: set[uuid.UUID]) -> None:
+    def tick_done(self, ticked: Mapping[uuid.UUID, Sequence[py_trees.common.Status]]) -> None:
         """After a tick: mirror the statuses, store the STATUS payload and, if recording, the transitions.
 
         Never raises: a monitor fault must not end a flight.
@@ -257,18 +257,18 @@ class Groot2Publisher:
 
 
 class _TickVisitor(py_trees.visitors.VisitorBase):
-    """Collects the behaviours a tick visits and hands them to the publisher after the tick."""
+    """Collects the behaviours a tick visits, with their status at each visit, for the publisher after the tick."""
 
     def __init__(self, publisher: Groot2Publisher) -> None:
         super().__init__(full=False)
         self._publisher = publisher
-        self._ticked: set[uuid.UUID] = set()
+        self._ticked: dict[uuid.UUID, list[py_trees.common.Status]] = {}
 
     def initialise(self) -> None:
-        self._ticked = set()
+        self._ticked = {}
 
     def run(self, behaviour: py_trees.behaviour.Behaviour) -> None:
-        self._ticked.add(behaviour.id)
+        self._ticked.setdefault(behaviour.id, []).append(behaviour.status)
 
     def finalise(self) -> None:
         self._publisher.tick_done(self._ticked)

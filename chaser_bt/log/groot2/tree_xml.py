@@ -45,8 +45,8 @@ class MonitoredNode:
 
     ``inner`` is the node itself under a pre-conditions wrapper (else ``behaviour``): ticked only when
     the node really runs. ``control``: a control node or decorator (BT.CPP sets these RUNNING as
-    their tick starts). ``reactive``: a reactive control node (while one runs, BT.CPP resets every
-    child but the running one).
+    their tick starts). ``resets_finished``: a reactive control node or a decorator (while one runs,
+    BT.CPP resets every child of it that is not running).
     """
 
     uid: int
@@ -54,7 +54,7 @@ class MonitoredNode:
     parent: int | None
     inner: py_trees.behaviour.Behaviour
     control: bool
-    reactive: bool = False
+    resets_finished: bool = False
 
 
 @dataclass(frozen=True)
@@ -178,8 +178,9 @@ class _Builder:
         uid = self.uid
         inner = behaviour.decorated if resolved.conditions else behaviour
         control = resolved.node_type.kind in (NodeKind.CONTROL, NodeKind.DECORATOR)
-        reactive = issubclass(resolved.node_type.cls, (ReactiveSequence, ReactiveFallback))
-        sub.nodes.append(MonitoredNode(uid, behaviour, parent, inner, control, reactive))
+        resets = resolved.node_type.kind is NodeKind.DECORATOR or issubclass(
+            resolved.node_type.cls, (ReactiveSequence, ReactiveFallback))
+        sub.nodes.append(MonitoredNode(uid, behaviour, parent, inner, control, resets))
         self.keys.update(resolved.remappings.values())
         spec = resolved.spec
         assert spec is not None
