@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from chaser_bt.log.commands import add_recording_arguments
+from chaser_bt.log.groot2.commands import add_groot2_arguments, start_hook
 
 __all__ = ["main"]
 
@@ -95,6 +96,7 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     p.add_argument("--no-telemetry", action="store_true", help="do not listen for the intruder's own MAVLink position")
     _signing_arguments(p)
     add_recording_arguments(p)
+    add_groot2_arguments(p)
 
     p = command("rehearse", _rehearse, "fly a tree against the in-process simulator and report")
     p.add_argument("tree", type=Path)
@@ -113,6 +115,7 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     p.add_argument("--report", type=Path, metavar="DIR",
                    help="write the report there too: report.json, report.md, the trace and the paper's figures")
     add_recording_arguments(p)
+    add_groot2_arguments(p)
 
     for module in _COMMAND_MODULES:
         importlib.import_module(module).add_command(sub)
@@ -199,12 +202,21 @@ def _nodes(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
+    tree = _load_tree(args.tree)
+    monitor = _groot2_monitor(args, tree)
+    try:
+        return _fly(args, tree, monitor)
+    finally:
+        if monitor is not None:
+            monitor.close()
+
+
+def _fly(args: argparse.Namespace, tree, monitor) -> int:
     from chaser_bt.clock import FunctionClock, WallClock
     from chaser_bt.mission.flight_sensors import FlightSensorError
     from chaser_bt.mission.runner import MissionRunner, RunStatus
     from chaser_bt.vehicle import LinkConfig, VehicleError, VehicleLink
 
-    tree = _load_tree(args.tree)
     hook = _recording_hook(args)
     config = LinkConfig(signing=_signing(args))
     try:
@@ -221,6 +233,8 @@ def _run(args: argparse.Namespace) -> int:
         link.close()
         raise _BadInput(str(exc)) from None
     runner = MissionRunner(tree, link, clock, rate_hz=args.rate_hz, resources=resources)
+    if monitor is not None:
+        monitor.attach(runner)
     if args.show_ticks:
         runner.on_tick(_tick_printer(tree, sys.stdout))
     print(f"flying {tree.name} on {args.connect} (Ctrl-C hands the aircraft back hovering)")
@@ -248,12 +262,15 @@ def _rehearse(args: argparse.Namespace) -> int:
     sensors = SensorOptions(radar=not args.no_radar, radar_pose=args.radar_pose, camera=not args.no_camera,
                             camera_size=args.camera_size, telemetry=not args.no_telemetry)
     hook = _recording_hook(args)
+    monitor = _groot2_monitor(args, tree)
     try:
         report = rehearse(tree, scenario, args.seed, rate_hz=args.rate_hz, on_tick=on_tick, sensors=sensors,
-                          on_start=hook, trace=args.trace is not None or args.report is not None)
+                          on_start=start_hook(monitor, hook), trace=args.trace is not None or args.report is not None)
     finally:
         if hook is not None:
             hook.close()
+        if monitor is not None:
+            monitor.close()
     if args.trace is not None:
         report.trace.save(args.trace)
     if args.report is not None:
@@ -299,6 +316,17 @@ def _recording_hook(args: argparse.Namespace):
         return RecordingHook.from_args(args)
     except RecordingError as exc:
         raise _BadInput(str(exc)) from None
+
+
+def _groot2_monitor(args: argparse.Namespace, tree):
+    """The ``--groot2`` monitor, serving before anything flies (None without it); a taken port is bad input."""
+    from chaser_bt.log.groot2 import Groot2Error
+    from chaser_bt.log.groot2.commands import groot2_monitor
+
+    try:
+        return groot2_monitor(args, tree)
+    except Groot2Error as exc:
+        raise _BadInput(f"--groot2: {exc}") from None
 
 
 def _size(text: str) -> tuple[int, int]:

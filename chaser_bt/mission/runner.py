@@ -145,6 +145,10 @@ class MissionRunner:
         """Call ``listener(changes)`` after every tick with that tick's status changes (maybe none)."""
         self._tick_listeners.append(listener)
 
+    def add_visitor(self, visitor: py_trees.visitors.VisitorBase) -> None:
+        """Run a py_trees visitor on the nodes every tick visits (Groot2's monitor sees the ticked nodes)."""
+        self._bt.add_visitor(visitor)
+
     # -- ticking ----------------------------------------------------------------------------
 
     def due(self) -> bool:

@@ -34,6 +34,7 @@ class MissionTree:
         source: the file it came from, None for text.
         inputs: absolute blackboard keys the mission provides from outside the tree.
         wiring: per node id, how each port was given ("20", "{/alt}"), for display.
+        resolved: the resolved tree it was built from (Groot2's monitor describes the tree with it).
     """
 
     name: str
@@ -41,6 +42,7 @@ class MissionTree:
     source: Path | None
     inputs: tuple[str, ...]
     wiring: dict[uuid.UUID, dict[str, str]] = field(default_factory=dict)
+    resolved: ResolvedNode | None = field(default=None, repr=False)
 
 
 def load_tree(path: str | Path, registry: Registry | None = None) -> MissionTree:
@@ -80,7 +82,7 @@ def _build(document: TreeDocument, problems: list[Problem], registry: Registry |
     wiring: dict[uuid.UUID, dict[str, str]] = {}
     root = build_node(resolution.root)
     _collect_wiring(resolution.root, root, wiring)
-    return MissionTree(resolution.main, root, None, resolution.inputs, wiring)
+    return MissionTree(resolution.main, root, None, resolution.inputs, wiring, resolution.root)
 
 
 def validate_tree(path: str | Path, registry: Registry | None = None) -> list[Problem]:

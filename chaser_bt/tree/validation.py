@@ -59,6 +59,7 @@ class ResolvedNode:
         wiring: port -> how a person reads it ("20", "{/alt}"), for display.
         conditions: BT.CPP pre-conditions, in BT.CPP's order of evaluation, then post-conditions.
         scripts: port -> the script a script port (``Script``'s ``code``) holds, bound to the blackboard.
+        spec: the node as written (Groot2's monitor writes the tree back from it).
     """
 
     node_type: NodeType
@@ -71,6 +72,7 @@ class ResolvedNode:
     children: list[ResolvedNode] = field(default_factory=list)
     conditions: list[Condition] = field(default_factory=list)
     scripts: dict[str, Condition] = field(default_factory=dict)
+    spec: NodeSpec | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass
@@ -250,6 +252,7 @@ class _Resolver:
         conditions = self.conditions(spec, scope)
         if resolved is not None:
             resolved.conditions = conditions
+            resolved.spec = spec
         return resolved
 
     def conditions(self, spec: NodeSpec, scope: _Scope) -> list[Condition]:
