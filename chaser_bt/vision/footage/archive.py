@@ -1,7 +1,8 @@
 """An export as CVAT hands it over: a zip archive or the folder it unpacks to, read the same way.
 
 Names are POSIX paths relative to the export's root. A zip whose entries all sit under one top
-folder (a zip of the unpacked folder) is read from inside that folder, so both layouts match.
+folder (a zip of the unpacked folder) is read from inside that folder, so both layouts match;
+not when that folder is ``annotations/`` (a COCO export saved without images).
 """
 
 from __future__ import annotations
@@ -33,7 +34,8 @@ class ExportArchive:
                 raise ValueError(f"{self.path}: not a zip archive ({e})") from None
             names = sorted(n for n in self._zip.namelist() if not n.endswith("/"))
             tops = {n.split("/", 1)[0] for n in names}
-            self._prefix = f"{tops.pop()}/" if len(tops) == 1 and all("/" in n for n in names) else ""
+            wrapped = len(tops) == 1 and all("/" in n for n in names) and not _is_export_root(names)
+            self._prefix = f"{tops.pop()}/" if wrapped else ""
             self._names = [n[len(self._prefix):] for n in names]
         else:
             raise FileNotFoundError(f"export not found: {self.path}")
@@ -77,3 +79,8 @@ class ExportArchive:
 
 def _norm(name: str) -> str:
     return PurePosixPath(name.replace("\\", "/")).as_posix().lstrip("/")
+
+
+def _is_export_root(names: list[str]) -> bool:
+    """The names already start at an export's root (YOLO's obj.names, COCO's annotations/)."""
+    return "obj.names" in names or any(n.startswith("annotations/") for n in names)
