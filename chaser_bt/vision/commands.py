@@ -138,7 +138,7 @@ def _import_footage(args: argparse.Namespace) -> int:
     try:
         summary = import_footage(args.export, args.out, video=args.video, chunk=args.chunk, val_frac=args.val_frac, seed=args.seed,
                                  classes=args.classes, rename=rename, video_start=args.video_start, video_step=args.video_step,
-                                 min_box_px=args.min_box_px)
+                                 min_box_px=args.min_box_px, prefix=args.prefix)
     except (ValueError, FileNotFoundError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
@@ -183,7 +183,8 @@ def add_command(subparsers) -> None:
     f = subparsers.add_parser("import-footage", help="a CVAT export (YOLO 1.1 or COCO 1.0, zip or folder) of your footage into "
                                                      "train/ and val/ YOLO folders, split by contiguous chunks")
     f.add_argument("export", help="CVAT export: zip or unpacked folder")
-    f.add_argument("--out", required=True, help="folder to write train/, val/ and import.json into (new or empty)")
+    f.add_argument("--out", required=True, help="folder to write train/, val/ and import.json into")
+    f.add_argument("--prefix", default="", help="start of every written file's name: one per flight sharing --out")
     f.add_argument("--video", default=None, help="take the frames from this video (export frame_NNNNNN = video frame N)")
     f.add_argument("--video-start", type=int, default=0, help="video frame of the export's frame 0 (the task's start frame)")
     f.add_argument("--video-step", type=int, default=1, help="video frames per export frame (the task's frame step)")

@@ -80,7 +80,7 @@ def test_import_writes_train_and_val_yolo_folders_split_by_chunks(tmp_path, imag
         "0 0.375000 0.375000 0.250000 0.250000\n1 0.675000 0.800000 0.100000 0.100000\n")
     img = cv2.imread(str(tmp_path / "out" / where / "images" / "000001.jpg"))
     assert img.shape == (H, W, 3) and np.abs(img.astype(float) - images[1]).mean() < 3.0  # JPEG 95 of the same pixels
-    assert json.loads((tmp_path / "out" / "import.json").read_text())["imported"] == 6
+    assert json.loads((tmp_path / "out" / "import.json").read_text())[0]["imported"] == 6
 
 
 def test_labels_are_renamed_mapped_onto_the_classes_and_clipped(tmp_path, images):
@@ -203,7 +203,34 @@ def test_cli_import_footage_prints_the_summary_and_names_bad_input(tmp_path, ima
     summary = json.loads(out)
     assert (summary["imported"], summary["train_chunks"], summary["val_chunks"]) == (5, 1, 1)
     assert "skipped obj_train_data/frame_000000.PNG: image missing" in err
-    assert main(["import-footage", str(export), "--out", str(tmp_path / "out")]) == 2  # not empty
-    assert "not empty" in capsys.readouterr().err
+    assert main(["import-footage", str(export), "--out", str(tmp_path / "out")]) == 2  # would overwrite
+    assert "exists: an earlier import wrote it" in capsys.readouterr().err
     assert main(["import-footage", str(export), "--out", str(tmp_path / "o2"), "--rename", "drone"]) == 2
     assert "expected LABEL=CLASS" in capsys.readouterr().err
+
+
+def test_several_flights_share_a_folder_with_a_prefix_each(tmp_path, images):
+    a = write_yolo11(tmp_path / "a.zip", CLASSES, BOXES, images)
+    b = write_coco10(tmp_path / "b.zip", CLASSES, BOXES[:3], images[:3])
+    import_footage(a, tmp_path / "out", val_frac=0.0, prefix="f1_")
+    with pytest.raises(FootageError, match=r"f1_000000\.jpg exists"):
+        import_footage(b, tmp_path / "out", val_frac=0.0, prefix="f1_")
+    import_footage(b, tmp_path / "out", val_frac=0.0, prefix="f2_")
+    names = sorted(p.stem for p in (tmp_path / "out" / "train" / "labels").glob("*.txt"))
+    assert names == [f"f1_{i:06d}" for i in range(6)] + [f"f2_{i:06d}" for i in range(3)]
+    assert [r["imported"] for r in json.loads((tmp_path / "out" / "import.json").read_text())] == [6, 3]
+    with pytest.raises(FootageError, match="an earlier import has other classes"):
+        import_footage(b, tmp_path / "out", val_frac=0.0, prefix="f3_", classes=("person",), rename={"s1000": "person", "phantom": "person"})
+
+
+def test_image_names_without_frame_numbers_keep_export_order_but_cannot_meet_a_video(tmp_path, images):
+    doc = coco_document(CLASSES, BOXES[:3])
+    for im, name in zip(doc["images"], ["b_last.jpg", "a_first.jpg", "c.jpg"]):
+        im["file_name"] = name
+    export = write_coco10(tmp_path / "c.zip", CLASSES, BOXES[:3], None, doc=doc)
+    with ExportArchive(export) as archive:
+        labels = read_export(archive)
+    assert not labels.numbered and [(f.name, f.frame) for f in labels.frames] == [
+        ("images/b_last.jpg", 0), ("images/a_first.jpg", 1), ("images/c.jpg", 2)]
+    with pytest.raises(FootageError, match="no distinct frame numbers"):
+        import_footage(export, tmp_path / "out", video=write_video(tmp_path / "v.avi", images))

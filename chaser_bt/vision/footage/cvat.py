@@ -59,11 +59,13 @@ class LabelledFrame:
 
 @dataclass
 class FootageLabels:
-    """What an export holds: its format, class names in id order and labelled frames by frame index."""
+    """What an export holds: its format, class names in id order and labelled frames by frame index;
+    ``numbered`` when the indices are the numbers in the image names (a video task's), not export order."""
 
     format: str
     classes: tuple[str, ...]
     frames: list[LabelledFrame] = field(default_factory=list)
+    numbered: bool = True
 
 
 def frame_number(name: str) -> int | None:
@@ -72,12 +74,12 @@ def frame_number(name: str) -> int | None:
     return int(m.group(1)) if m else None
 
 
-def _numbered(names: list[str]) -> list[int]:
-    """Frame indices: the numbers in the names when every name has a distinct one, else export order."""
+def _numbered(names: list[str]) -> tuple[list[int], bool]:
+    """Frame indices: the numbers in the names when every name has a distinct one (True), else export order (False)."""
     nums = [frame_number(n) for n in names]
     if all(n is not None for n in nums) and len(set(nums)) == len(nums):
-        return nums  # type: ignore[return-value]
-    return list(range(len(names)))
+        return nums, True  # type: ignore[return-value]
+    return list(range(len(names))), False
 
 
 def _strip_data(path: str) -> str:
@@ -131,11 +133,12 @@ def read_yolo11(archive: ExportArchive) -> FootageLabels:
                 stem = n[:-4]
                 images.append(next((stem + s for s in _suffixes(stem, names)), stem + ".jpg"))
     frames = []
-    for img, num in zip(images, _numbered(images)):
+    nums, numbered = _numbered(images)
+    for img, num in zip(images, nums):
         label = str(PurePosixPath(img).with_suffix(".txt"))
         boxes = _parse_yolo_lines(archive.read_text(label), archive.where(label), len(classes)) if archive.exists(label) else np.zeros((0, 5))
         frames.append(LabelledFrame(img, num, boxes))
-    return FootageLabels("yolo1.1", classes, sorted(frames, key=lambda f: f.frame))
+    return FootageLabels("yolo1.1", classes, sorted(frames, key=lambda f: f.frame), numbered)
 
 
 def _suffixes(stem: str, names: list[str]) -> list[str]:
@@ -149,7 +152,7 @@ def read_coco10(archive: ExportArchive) -> FootageLabels:
     if not jsons:
         raise FootageError(f"{archive.path}: no annotations/instances_*.json (not a COCO 1.0 export)")
     classes: tuple[str, ...] | None = None
-    frames: list[LabelledFrame] = []
+    found: list[tuple[str, str, np.ndarray, tuple[int, int]]] = []  # path, file_name, normalised boxes, size
     for js in jsons:
         where = archive.where(js)
         try:
@@ -177,16 +180,21 @@ def read_coco10(archive: ExportArchive) -> FootageLabels:
             if cid not in cat_index:
                 raise FootageError(f"{where}: annotation {a.get('id', '?')}: category_id {cid} is not in categories")
             by_image[iid].append([cat_index[cid], x, y, w, h])
-        files = [_coco_image_path(archive, str(im["file_name"]), subset) for im in images]
-        for im, path, num in zip(images, files, _numbered([str(im["file_name"]) for im in images])):
-            width, height = int(im["width"]), int(im["height"])
+        for im in images:
+            try:
+                width, height, _ = int(im["width"]), int(im["height"]), str(im["file_name"])
+            except (KeyError, TypeError, ValueError) as e:
+                raise FootageError(f"{where}: image {im.get('id', '?') if isinstance(im, dict) else im!r}: no usable width, height "
+                                   f"and file_name ({e})") from None
             if width <= 0 or height <= 0:
                 raise FootageError(f"{where}: image {im['id']} ({im['file_name']}): size {width} x {height}")
             rows = np.array(by_image[int(im["id"])], float).reshape(-1, 5)
             norm = np.stack([rows[:, 0], (rows[:, 1] + rows[:, 3] / 2) / width, (rows[:, 2] + rows[:, 4] / 2) / height,
                              rows[:, 3] / width, rows[:, 4] / height], 1).reshape(-1, 5)
-            frames.append(LabelledFrame(path, num, norm, (width, height)))
-    return FootageLabels("coco1.0", classes or (), sorted(frames, key=lambda f: f.frame))
+            found.append((_coco_image_path(archive, str(im["file_name"]), subset), str(im["file_name"]), norm, (width, height)))
+    nums, numbered = _numbered([f[1] for f in found])  # over every subset: one task's frames
+    frames = [LabelledFrame(path, num, norm, size) for (path, _, norm, size), num in zip(found, nums)]
+    return FootageLabels("coco1.0", classes or (), sorted(frames, key=lambda f: f.frame), numbered)
 
 
 def _coco_image_path(archive: ExportArchive, file_name: str, subset: str) -> str:

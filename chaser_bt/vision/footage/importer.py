@@ -3,17 +3,19 @@
 ``import_footage`` reads the export (:mod:`~chaser_bt.vision.footage.cvat`), maps its label names
 onto the detector's classes, splits the frames by contiguous chunks
 (:func:`~chaser_bt.vision.footage.split.chunk_split`) and writes ``OUT/train`` and ``OUT/val``, each
-``images/NNNNNN.jpg`` (the frame index), ``labels/NNNNNN.txt`` and ``classes.txt``: what
+``images/<prefix>NNNNNN.jpg`` (the frame index), ``labels/<prefix>NNNNNN.txt`` and ``classes.txt``: what
 ``chaser-bt train-detector`` and ``eval-detector`` read. Frames whose pixels cannot be had (missing
 from the export, unreadable, past the video's end, another size than the export says) are skipped
 and counted with the reason; boxes are clipped to the image and dropped when nothing is left of them
-or their label is not one of the classes. ``OUT/import.json`` keeps the summary.
+or their label is not one of the classes. ``OUT/import.json`` keeps the summaries. Several flights
+go into one folder with a ``prefix`` each (same classes; an existing file is never overwritten).
 """
 
 from __future__ import annotations
 
 import json
 import logging
+import re
 from collections import Counter
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -81,12 +83,12 @@ def _pixels(frame: LabelledFrame, archive: ExportArchive, video: VideoFrames | N
 def import_footage(export: str | Path, out_dir: str | Path, video: str | Path | None = None, chunk: int = 150,
                    val_frac: float = 0.2, seed: int = 0, classes: Sequence[str] | None = None,
                    rename: Mapping[str, str] | None = None, video_start: int = 0, video_step: int = 1,
-                   min_box_px: float = 1.0, jpeg_quality: int = 95) -> ImportSummary:
+                   min_box_px: float = 1.0, prefix: str = "", jpeg_quality: int = 95) -> ImportSummary:
     """Write ``out_dir/train`` and ``out_dir/val`` from a CVAT export (see module docstring).
 
     Args:
         export: a CVAT "YOLO 1.1" or "COCO 1.0" export, zip or unpacked folder.
-        out_dir: where the two YOLO folders go (they must not hold files yet).
+        out_dir: where the two YOLO folders go (new, or holding other imports with the same classes).
         video: take every frame's pixels from this video (frame index = the number in the export's
             image name) instead of the export's images.
         chunk: frames per chunk of the split (at 30 frames/s, 150 is 5 s of flight).
@@ -97,19 +99,31 @@ def import_footage(export: str | Path, out_dir: str | Path, video: str | Path | 
         rename: export label -> class name (``{"drone": "s1000"}``).
         video_start, video_step: the video frame of export frame 0, and video frames per export frame.
         min_box_px: a box narrower or lower than this after clipping to the image is dropped.
+        prefix: starts every written file's name (one per flight when several share ``out_dir``).
         jpeg_quality: of the written images.
 
     Raises:
         FootageError: an unreadable export, video or label line (the message names the file and line);
-            a non-empty output folder; nothing left to import.
+            other classes than an earlier import into ``out_dir``, or a file it would overwrite; frame
+            indices that are not the video's; nothing left to import.
     """
     out = Path(out_dir)
-    for part in ("train", "val"):
-        if (out / part).exists() and any((out / part).iterdir()):
-            raise FootageError(f"{out / part}: not empty (import into a new folder)")
+    if not re.fullmatch(r"[A-Za-z0-9_.-]*", prefix):
+        raise FootageError(f"prefix {prefix!r}: letters, digits, '_', '-' and '.' only")
     with ExportArchive(export) as archive:
         labels = read_export(archive)
+        if video is not None and not labels.numbered:
+            raise FootageError(f"{export}: its image names carry no distinct frame numbers (frame_000042...), "
+                               f"so they cannot be matched to the frames of {video}")
         out_classes, cmap = _class_map(labels.classes, classes, rename or {})
+        for part in ("train", "val"):
+            have = out / part / "classes.txt"
+            if have.exists() and tuple(x.strip() for x in have.read_text().splitlines() if x.strip()) != out_classes:
+                raise FootageError(f"{have}: an earlier import has other classes than {list(out_classes)} (use a new folder)")
+            for f in labels.frames:
+                taken = out / part / "images" / f"{prefix}{f.frame:06d}.jpg"
+                if taken.exists():
+                    raise FootageError(f"{taken} exists: an earlier import wrote it (give this one another --prefix)")
         summary = ImportSummary(str(export), labels.format, out_classes, frames=len(labels.frames))
         train, val = chunk_split([f.frame for f in labels.frames], chunk, val_frac, seed)
         part_of = {i: "train" for i in train} | {i: "val" for i in val}
@@ -143,7 +157,7 @@ def import_footage(export: str | Path, out_dir: str | Path, video: str | Path | 
                         continue
                     lines.append(f"{k} {(x0 + x1) / 2 / w:.6f} {(y0 + y1) / 2 / h:.6f} {(x1 - x0) / w:.6f} {(y1 - y0) / h:.6f}")
                 part = part_of[i]
-                stem = f"{frame.frame:06d}"
+                stem = f"{prefix}{frame.frame:06d}"
                 if not cv2.imwrite(str(out / part / "images" / f"{stem}.jpg"), img, [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality]):
                     raise FootageError(f"{out / part / 'images' / stem}.jpg: could not be written")
                 (out / part / "labels" / f"{stem}.txt").write_text("".join(x + "\n" for x in lines))
@@ -156,7 +170,9 @@ def import_footage(export: str | Path, out_dir: str | Path, video: str | Path | 
                 source.close()
     summary.train_chunks, summary.val_chunks = len(chunks["train"]), len(chunks["val"])
     summary.dropped_boxes = dict(dropped)
-    (out / "import.json").write_text(json.dumps(summary.to_dict(), indent=1) + "\n")
+    record = out / "import.json"
+    earlier = json.loads(record.read_text()) if record.exists() else []
+    record.write_text(json.dumps([*earlier, summary.to_dict()], indent=1) + "\n")
     for name, why in summary.skipped:
         log.warning("skipped %s: %s", name, why)
     if not summary.imported:
