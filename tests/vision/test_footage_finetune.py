@@ -48,7 +48,7 @@ def fine_tuned(tmp_path_factory):
 
 
 def test_fine_tune_from_the_shipped_weights_writes_loadable_weights_and_onnx(fine_tuned):
-    tmp, weights, images = fine_tuned
+    _, weights, images = fine_tuned
     model = load_model(weights)
     assert model.config.class_names == ("s1000", "phantom")
     shipped = load_model(DEFAULT_WEIGHTS).state_dict()
@@ -72,7 +72,7 @@ def test_eval_detector_scores_the_held_out_chunks(fine_tuned, capsys):
 
 
 def test_a_tree_runs_the_fine_tuned_detector_by_path(fine_tuned):
-    tmp, weights, images = fine_tuned
+    _, weights, images = fine_tuned
     tree = load_tree_text(f"version: 1\ntrees:\n  Test:\n    VisionPipeline: {{weights: '{weights}', classes: [s1000, phantom]}}\n",
                           source="<test>")
     pipeline = VisionPipeline(CameraModel(width_px=W, height_px=H), lambda image: [], PipelineConfig(detect_every=1, focus=False))

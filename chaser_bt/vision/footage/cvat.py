@@ -87,7 +87,7 @@ def _strip_data(path: str) -> str:
     p = path.strip().replace("\\", "/")
     while p.startswith("./"):
         p = p[2:]
-    return p[5:] if p.startswith("data/") else p
+    return p.removeprefix("data/")
 
 
 def _parse_yolo_lines(text: str, where: str, num_classes: int) -> np.ndarray:

@@ -8,7 +8,7 @@ and whole chunks are drawn, seeded, for validation; a chunk never straddles the 
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -34,7 +34,7 @@ def chunk_split(frames: Sequence[int], chunk: int, val_frac: float, seed: int = 
         raise ValueError(f"val_frac must be in [0, 1), got {val_frac}")
     ids = np.asarray(frames, dtype=np.int64) // chunk
     chunks = np.unique(ids)
-    n_val = int(round(val_frac * len(chunks)))
+    n_val = round(val_frac * len(chunks))
     if val_frac > 0 and len(chunks) >= 2:
         n_val = min(max(n_val, 1), len(chunks) - 1)
     else:
