@@ -63,7 +63,11 @@ def test_a_zip_of_the_unpacked_folder_reads_like_the_export(tmp_path, images):
         labels = read_export(a)
     np.testing.assert_allclose(labels.frames[3].boxes, [FRAC_B], atol=1e-12)
     assert labels.frames[3].name == "obj_train_data/frame_000003.PNG"
-    assert folder.is_dir()
+    holder = tmp_path / "downloads"
+    shutil.copytree(folder, holder / folder.name)
+    with ExportArchive(holder) as a:  # the folder holding the unpacked export
+        assert read_export(a).frames[3].name == "obj_train_data/frame_000003.PNG"
+        assert a.where("obj.names") == str(holder / folder.name / "obj.names")
 
 
 def test_import_writes_train_and_val_yolo_folders_split_by_chunks(tmp_path, images):

@@ -1,8 +1,9 @@
 """An export as CVAT hands it over: a zip archive or the folder it unpacks to, read the same way.
 
-Names are POSIX paths relative to the export's root. A zip whose entries all sit under one top
-folder (a zip of the unpacked folder) is read from inside that folder, so both layouts match;
-not when that folder is ``annotations/`` (a COCO export saved without images).
+Names are POSIX paths relative to the export's root. An export whose files all sit under one top
+folder (a zip of the unpacked folder, or a folder holding the unpacked one) is read from inside
+that folder, so these layouts all match; not when that folder is ``annotations/`` (a COCO export
+saved without images).
 """
 
 from __future__ import annotations
@@ -24,18 +25,16 @@ class ExportArchive:
         self.path = Path(path)
         self._zip: zipfile.ZipFile | None = None
         if self.path.is_dir():
-            root = self.path
-            self._names = sorted(p.relative_to(root).as_posix() for p in root.rglob("*") if p.is_file())
-            self._prefix = ""
+            names = sorted(p.relative_to(self.path).as_posix() for p in self.path.rglob("*") if p.is_file())
+            self._prefix = _wrapper(names)
+            self._names = [n[len(self._prefix):] for n in names]
         elif self.path.is_file():
             try:
                 self._zip = zipfile.ZipFile(self.path)
             except zipfile.BadZipFile as e:
                 raise ValueError(f"{self.path}: not a zip archive ({e})") from None
             names = sorted(n for n in self._zip.namelist() if not n.endswith("/"))
-            tops = {n.split("/", 1)[0] for n in names}
-            wrapped = len(tops) == 1 and all("/" in n for n in names) and not _is_export_root(names)
-            self._prefix = f"{tops.pop()}/" if wrapped else ""
+            self._prefix = _wrapper(names)
             self._names = [n[len(self._prefix):] for n in names]
         else:
             raise FileNotFoundError(f"export not found: {self.path}")
@@ -55,7 +54,7 @@ class ExportArchive:
             raise FileNotFoundError(f"{self.path}: no file {n}")
         if self._zip is not None:
             return self._zip.read(self._prefix + n)
-        return (self.path / n).read_bytes()
+        return (self.path / (self._prefix + n)).read_bytes()
 
     def read_text(self, name: str) -> str:
         return self.read_bytes(name).decode("utf-8-sig")
@@ -63,7 +62,7 @@ class ExportArchive:
     def where(self, name: str) -> str:
         """How an error message names the file: ``export.zip!obj_train_data/x.txt`` or a folder path."""
         n = _norm(name)
-        return f"{self.path}!{n}" if self._zip is not None else str(self.path / n)
+        return f"{self.path}!{self._prefix}{n}" if self._zip is not None else str(self.path / (self._prefix + n))
 
     def close(self) -> None:
         if self._zip is not None:
@@ -79,6 +78,13 @@ class ExportArchive:
 
 def _norm(name: str) -> str:
     return PurePosixPath(name.replace("\\", "/")).as_posix().lstrip("/")
+
+
+def _wrapper(names: list[str]) -> str:
+    """``"top/"`` when every name is under one folder ``top`` that is not part of an export, else ``""``."""
+    tops = {n.split("/", 1)[0] for n in names}
+    wrapped = len(tops) == 1 and all("/" in n for n in names) and not _is_export_root(names)
+    return f"{tops.pop()}/" if wrapped else ""
 
 
 def _is_export_root(names: list[str]) -> bool:
