@@ -173,6 +173,7 @@ def test_a_corrupt_or_short_video(tmp_path, images):
     bad.write_bytes(b"RIFF\x00\x00garbage" * 50)
     with pytest.raises(FootageError, match=r"broken\.avi: cannot open as a video|broken\.avi: no frame could be decoded"):
         import_footage(export, tmp_path / "out", video=bad)
+    assert not (tmp_path / "out").exists()
     short = write_video(tmp_path / "short.avi", images[:4])
     s = import_footage(export, tmp_path / "out2", video=short, val_frac=0.0)
     assert s.imported == 4 and [r for _, r in s.skipped] == ["frame 4 is past the end of short.avi", "frame 5 is past the end of short.avi"]

@@ -127,13 +127,13 @@ def import_footage(export: str | Path, out_dir: str | Path, video: str | Path | 
         summary = ImportSummary(str(export), labels.format, out_classes, frames=len(labels.frames))
         train, val = chunk_split([f.frame for f in labels.frames], chunk, val_frac, seed)
         part_of = {i: "train" for i in train} | {i: "val" for i in val}
+        source = VideoFrames(video, video_start, video_step) if video is not None else None  # a bad video: nothing written
         for part in ("train", "val"):
             (out / part / "images").mkdir(parents=True, exist_ok=True)
             (out / part / "labels").mkdir(parents=True, exist_ok=True)
             (out / part / "classes.txt").write_text("\n".join(out_classes) + "\n")
         dropped: Counter[str] = Counter()
         chunks: dict[str, set[int]] = {"train": set(), "val": set()}
-        source = VideoFrames(video, video_start, video_step) if video is not None else None
         try:
             for i, frame in enumerate(labels.frames):
                 img, why = _pixels(frame, archive, source)
