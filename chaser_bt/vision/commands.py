@@ -138,7 +138,7 @@ def _import_footage(args: argparse.Namespace) -> int:
     try:
         summary = import_footage(args.export, args.out, video=args.video, chunk=args.chunk, val_frac=args.val_frac, seed=args.seed,
                                  classes=args.classes, rename=rename, video_start=args.video_start, video_step=args.video_step,
-                                 min_box_px=args.min_box_px, prefix=args.prefix)
+                                 min_box_px=args.min_box_px, prefix=args.prefix, preview=args.preview)
     except (ValueError, FileNotFoundError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
@@ -195,4 +195,5 @@ def add_command(subparsers) -> None:
                                                               "default: the export's labels")
     f.add_argument("--rename", nargs="+", default=None, metavar="LABEL=CLASS", help="export label to class, e.g. drone=s1000")
     f.add_argument("--min-box-px", type=float, default=1.0, help="drop boxes narrower or lower than this once clipped")
+    f.add_argument("--preview", type=int, default=0, help="write the first N frames with their boxes drawn to OUT/preview/")
     f.set_defaults(handler=_import_footage)

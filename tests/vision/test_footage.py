@@ -239,3 +239,13 @@ def test_image_names_without_frame_numbers_keep_export_order_but_cannot_meet_a_v
         ("images/b_last.jpg", 0), ("images/a_first.jpg", 1), ("images/c.jpg", 2)]
     with pytest.raises(FootageError, match="no distinct frame numbers"):
         import_footage(export, tmp_path / "out", video=write_video(tmp_path / "v.avi", images))
+
+
+def test_preview_draws_the_written_boxes(tmp_path, images):
+    export = write_coco10(tmp_path / "c.zip", CLASSES, BOXES, images)
+    import_footage(export, tmp_path / "out", val_frac=0.0, preview=2)
+    assert sorted(p.name for p in (tmp_path / "out" / "preview").iterdir()) == ["000000.png", "000001.png"]
+    drawn = cv2.imread(str(tmp_path / "out" / "preview" / "000000.png"))
+    # BOX_A's right edge is the column x = 80 from y = 30 to 60, drawn pure green (PNG: lossless); beside it the frame.
+    assert (drawn[35:58, 80] == (0, 255, 0)).all()
+    assert (drawn[35:58, 83] == images[0][35:58, 83]).all()

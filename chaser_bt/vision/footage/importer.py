@@ -80,10 +80,24 @@ def _pixels(frame: LabelledFrame, archive: ExportArchive, video: VideoFrames | N
     return (img, "") if img is not None else (None, "not a readable image")
 
 
+def _write_preview(path: Path, image: np.ndarray, lines: list[str], classes: Sequence[str]) -> None:
+    """The frame with its written boxes drawn (green) and named, for a look by eye."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    img = image.copy()
+    h, w = img.shape[:2]
+    for line in lines:
+        k, cx, cy, bw, bh = line.split()
+        x0, y0 = (float(cx) - float(bw) / 2) * w, (float(cy) - float(bh) / 2) * h
+        x1, y1 = x0 + float(bw) * w, y0 + float(bh) * h
+        cv2.rectangle(img, (round(x0), round(y0)), (round(x1), round(y1)), (0, 255, 0), 1)
+        cv2.putText(img, classes[int(k)], (round(x0), max(round(y0) - 2, 8)), cv2.FONT_HERSHEY_SIMPLEX, 0.3, (0, 255, 0), 1)
+    cv2.imwrite(str(path), img)
+
+
 def import_footage(export: str | Path, out_dir: str | Path, video: str | Path | None = None, chunk: int = 150,
                    val_frac: float = 0.2, seed: int = 0, classes: Sequence[str] | None = None,
                    rename: Mapping[str, str] | None = None, video_start: int = 0, video_step: int = 1,
-                   min_box_px: float = 1.0, prefix: str = "", jpeg_quality: int = 95) -> ImportSummary:
+                   min_box_px: float = 1.0, prefix: str = "", preview: int = 0, jpeg_quality: int = 95) -> ImportSummary:
     """Write ``out_dir/train`` and ``out_dir/val`` from a CVAT export (see module docstring).
 
     Args:
@@ -100,6 +114,8 @@ def import_footage(export: str | Path, out_dir: str | Path, video: str | Path | 
         video_start, video_step: the video frame of export frame 0, and video frames per export frame.
         min_box_px: a box narrower or lower than this after clipping to the image is dropped.
         prefix: starts every written file's name (one per flight when several share ``out_dir``).
+        preview: also write the first ``preview`` imported frames with their boxes drawn to
+            ``out_dir/preview/`` (PNG) (look at them: a wrong ``video_start`` shows as boxes beside the targets).
         jpeg_quality: of the written images.
 
     Raises:
@@ -161,6 +177,8 @@ def import_footage(export: str | Path, out_dir: str | Path, video: str | Path | 
                 if not cv2.imwrite(str(out / part / "images" / f"{stem}.jpg"), img, [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality]):
                     raise FootageError(f"{out / part / 'images' / stem}.jpg: could not be written")
                 (out / part / "labels" / f"{stem}.txt").write_text("".join(x + "\n" for x in lines))
+                if summary.imported < preview:
+                    _write_preview(out / "preview" / f"{stem}.png", img, lines, out_classes)
                 summary.imported += 1
                 summary.boxes += len(lines)
                 setattr(summary, part, getattr(summary, part) + 1)
