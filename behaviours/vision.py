@@ -6,7 +6,8 @@ projection, and writes the :class:`~chaser_bt.cue.TargetEstimate` to ``/target/e
 ``range_from_telemetry`` it takes the range from the target's own position on
 ``/target/telemetry`` (the paper's flights) instead of the box size. The tree picks the model:
 ``detector`` names a shipped detector (``tiny_yolo`` for the drones, ``person_yolo`` for search and
-rescue; ``camera`` keeps the one the camera resource was built with), ``classes`` the class names
+rescue; ``camera`` keeps the one the camera resource was built with) or ``weights`` a weights file
+(a detector fine-tuned on your own footage: ``chaser-bt train-detector``), ``classes`` the class names
 that count as the target, and ``target_on_ground`` ranges a target standing on flat ground (a
 person) where its bearing meets the ground. ``cue`` (unset by default; remap it to the radar cue or
 the target's telemetry) tells the pipeline where to look and which tracks can be the target
@@ -51,6 +52,13 @@ def _shipped(name: str):
     return shipped_detector(name)
 
 
+@lru_cache(maxsize=4)
+def _from_file(path: str):
+    from chaser_bt.vision.detector.inference import Detector
+
+    return Detector(path)
+
+
 @register_behaviour
 class VisionPipeline(VehicleBehaviour):
     """Process one camera frame; SUCCESS with a target estimate written, FAILURE when none is seen."""
@@ -62,6 +70,8 @@ class VisionPipeline(VehicleBehaviour):
         "max_telemetry_age_s": input_port(float, "Older telemetry is not used for range (s)", default=2.0),
         "detector": input_port(DetectorChoice, "Shipped detector to run (tiny_yolo, person_yolo) or camera: the camera's own",
                                default=DetectorChoice.CAMERA),
+        "weights": input_port(str, "Detector weights file to run instead of detector (a fine-tuned .pt; its .onnx copy "
+                                   "beside it is used when fresh); empty: use detector", default=""),
         "classes": input_port(list[str], "Class names that count as the target (empty: the camera's setting)", default=[]),
         "target_on_ground": input_port(bool, "Target stands on flat ground: range where the bearing meets it", default=False),
         "cue": input_port(TargetCue, "Where the target should be (radar or telemetry): the detector looks there and "
@@ -79,7 +89,10 @@ class VisionPipeline(VehicleBehaviour):
             raise KeyError(f"{self.name}: setup() needs camera=CameraSensor(...) (the mission runner passes it)")
         self.camera: CameraSensor = kwargs["camera"]
         choice = self.get_input("detector")
-        if choice is not DetectorChoice.CAMERA:
+        weights = str(self.get_input("weights") or "")
+        if weights:
+            _from_file(weights)  # loaded before take-off, like a shipped one
+        elif choice is not DetectorChoice.CAMERA:
             _shipped(choice.value)  # loaded before take-off: missing weights stop the mission here, not in flight
 
     def _configure(self) -> None:
@@ -94,7 +107,10 @@ class VisionPipeline(VehicleBehaviour):
             raise ValueError(f"detect_every must be >= 0, got {every}")
         if every and every != pipeline.config.detect_every:
             pipeline.config = replace(pipeline.config, detect_every=every)
-        if choice is not DetectorChoice.CAMERA and pipeline.detector_name != choice.value:
+        weights = str(self.get_input("weights") or "")
+        if weights and pipeline.detector_name != weights:
+            pipeline.use_detector(_from_file(weights), weights, wanted_classes, on_ground)
+        elif not weights and choice is not DetectorChoice.CAMERA and pipeline.detector_name != choice.value:
             pipeline.use_detector(_shipped(choice.value), choice.value, wanted_classes, on_ground)
         elif wanted_classes != pipeline.config.classes or on_ground != pipeline.config.target_on_ground:
             pipeline.use_detector(pipeline.detector, pipeline.detector_name, wanted_classes, on_ground)

@@ -124,6 +124,30 @@ def _eval(args: argparse.Namespace) -> int:
     return 0
 
 
+def _import_footage(args: argparse.Namespace) -> int:
+    """``chaser-bt import-footage``: a CVAT export of real footage into train/ and val/ YOLO folders."""
+    from chaser_bt.vision.footage import import_footage
+
+    rename = {}
+    for pair in args.rename or []:
+        old, sep, new = pair.partition("=")
+        if not sep or not old or not new:
+            print(f"error: --rename {pair!r}: expected LABEL=CLASS", file=sys.stderr)
+            return 2
+        rename[old] = new
+    try:
+        summary = import_footage(args.export, args.out, video=args.video, chunk=args.chunk, val_frac=args.val_frac, seed=args.seed,
+                                 classes=args.classes, rename=rename, video_start=args.video_start, video_step=args.video_step,
+                                 min_box_px=args.min_box_px, prefix=args.prefix, preview=args.preview)
+    except (ValueError, FileNotFoundError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    for name, why in summary.skipped:
+        print(f"skipped {name}: {why}", file=sys.stderr)
+    print(json.dumps(summary.to_dict()))
+    return 0
+
+
 def add_command(subparsers) -> None:
     """Add ``train-detector``, ``train-refiner`` and ``eval-detector`` to the CLI's subparsers."""
     t = subparsers.add_parser("train-detector", help="train the vision detector on a YOLO folder (seeded, resumable)")
@@ -156,3 +180,20 @@ def add_command(subparsers) -> None:
     e.add_argument("--limit", type=int, default=0, help="use the first N images only")
     e.add_argument("--backend", choices=["auto", "torch", "onnx"], default="auto")
     e.set_defaults(handler=_eval)
+    f = subparsers.add_parser("import-footage", help="a CVAT export (YOLO 1.1 or COCO 1.0, zip or folder) of your footage into "
+                                                     "train/ and val/ YOLO folders, split by contiguous chunks")
+    f.add_argument("export", help="CVAT export: zip or unpacked folder")
+    f.add_argument("--out", required=True, help="folder to write train/, val/ and import.json into")
+    f.add_argument("--prefix", default="", help="start of every written file's name: one per flight sharing --out")
+    f.add_argument("--video", default=None, help="take the frames from this video (export frame_NNNNNN = video frame N)")
+    f.add_argument("--video-start", type=int, default=0, help="video frame of the export's frame 0 (the task's start frame)")
+    f.add_argument("--video-step", type=int, default=1, help="video frames per export frame (the task's frame step)")
+    f.add_argument("--chunk", type=int, default=150, help="consecutive frames per chunk of the split (150 = 5 s at 30 frames/s)")
+    f.add_argument("--val-frac", type=float, default=0.2, help="share of chunks held out for validation")
+    f.add_argument("--seed", type=int, default=0, help="which chunks are held out")
+    f.add_argument("--classes", nargs="+", default=None, help="output classes in id order (the detector's, e.g. s1000 phantom); "
+                                                              "default: the export's labels")
+    f.add_argument("--rename", nargs="+", default=None, metavar="LABEL=CLASS", help="export label to class, e.g. drone=s1000")
+    f.add_argument("--min-box-px", type=float, default=1.0, help="drop boxes narrower or lower than this once clipped")
+    f.add_argument("--preview", type=int, default=0, help="write the first N frames with their boxes drawn to OUT/preview/")
+    f.set_defaults(handler=_import_footage)
