@@ -16,6 +16,7 @@ jitter (:mod:`chaser_bt.vision.detector.augment`).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,6 +36,7 @@ from sitl.world.camera.renderer import (
     attitude_from_velocity,
 )
 from sitl.world.camera.scene import make_ground
+from sitl.world.camera.world import FAMILIES, WorldSpec, build_world
 
 __all__ = ["CLASSES", "PERSON_CLASSES", "SplitSpec", "SPLITS", "DatasetRenderer", "write_dataset", "read_yolo_labels"]
 
@@ -66,7 +68,10 @@ class DatasetRenderer:
     """Random labelled frames for one split (see module docstring)."""
 
     def __init__(self, split: str = "train", width_px: int = 640, height_px: int = 480, ground_size_px: int = 2048,
-                 kinds: tuple[str, ...] = CLASSES, follow_share: float = 0.0) -> None:
+                 kinds: tuple[str, ...] = CLASSES, follow_share: float = 0.0, families: tuple[str, ...] = ()) -> None:
+        """``families``: camera-world families (:mod:`sitl.world.camera.world`) to render in, one world
+        per family and split ground seed, each frame at a random time (birds, drift) in the world's
+        lighting, jittered; empty: the plain field under random lighting."""
         if split not in SPLITS:
             raise ValueError(f"unknown split {split!r}; known: {sorted(SPLITS)}")
         if not kinds:
@@ -79,11 +84,16 @@ class DatasetRenderer:
         self.follow_share = follow_share
         self.spec = SPLITS[split]
         self.camera = CameraModel(width_px=width_px, height_px=height_px)
-        self.renderers = [Renderer(self.camera, make_ground(s, ground_size_px), noise_seed=s) for s in self.spec.ground_seeds]
+        self.worlds = [build_world(WorldSpec(f), s, width_px, height_px) for f in families for s in self.spec.ground_seeds]
+        if self.worlds:
+            self.renderers = [Renderer(self.camera, world=w, noise_seed=k) for k, w in enumerate(self.worlds)]
+        else:
+            self.renderers = [Renderer(self.camera, make_ground(s, ground_size_px), noise_seed=s) for s in self.spec.ground_seeds]
 
     def sample(self, rng: np.random.Generator) -> RenderedFrame:
         spec = self.spec
-        renderer = self.renderers[int(rng.integers(len(self.renderers)))]
+        index = int(rng.integers(len(self.renderers)))
+        renderer = self.renderers[index]
         cam = self.camera
         people_only = self.kinds == ("person",)
         alt = spec.person_altitude_m if people_only else (4.0, 60.0)
@@ -100,9 +110,15 @@ class DatasetRenderer:
             noise_sigma=rng.uniform(1.0, 6.0),
             jpeg_quality=int(rng.integers(40, 96)),
         )
+        t = 0.0
+        if self.worlds:
+            world_light = self.worlds[index].lighting
+            light = dataclasses.replace(world_light, brightness=world_light.brightness * rng.uniform(0.85, 1.15),
+                                        noise_sigma=light.noise_sigma, jpeg_quality=light.jpeg_quality)
+            t = float(rng.uniform(0.0, 600.0))
         airborne = [k for k in self.kinds if k != "person"]
         if self.follow_share > 0 and airborne and rng.random() < self.follow_share:
-            return self._follow_view(renderer, light, airborne[int(rng.integers(len(airborne)))], rng)
+            return self._follow_view(renderer, light, airborne[int(rng.integers(len(airborne)))], rng, t)
         n = int(rng.choice([0, 1, 2, 3], p=[0.1, 0.6, 0.2, 0.1])) if people_only else int(rng.choice([0, 1, 2], p=[0.1, 0.75, 0.15]))
         targets = []
         fx = cam.focal_px[0]
@@ -127,10 +143,10 @@ class DatasetRenderer:
             t_att = Rotation.from_euler("ZYX", [rng.uniform(-math.pi, math.pi), rng.normal(0, math.radians(10)), rng.normal(0, math.radians(10))])
             targets.append(TargetPose(kind, p, t_att))
         blur = rng.uniform(2.0, 8.0) if rng.random() < 0.4 else 0.0
-        return renderer.render(pos, att, targets, light, rng, blur_px=blur, blur_angle_rad=rng.uniform(0, math.pi))
+        return renderer.render(pos, att, targets, light, rng, blur_px=blur, blur_angle_rad=rng.uniform(0, math.pi), t=t)
 
-
-    def _follow_view(self, renderer: Renderer, light: Lighting, kind: str, rng: np.random.Generator) -> RenderedFrame:
+    def _follow_view(self, renderer: Renderer, light: Lighting, kind: str, rng: np.random.Generator,
+                     t: float = 0.0) -> RenderedFrame:
         """The chaser 5-35 deg above and behind a ``kind`` target, nose on it give or take a few degrees."""
         cam = self.camera
         px = math.exp(rng.uniform(math.log(15.0), math.log(120.0)))
@@ -145,7 +161,8 @@ class DatasetRenderer:
         course = heading + rng.normal(0, math.radians(30))
         t_att = attitude_from_velocity(np.array([speed * math.cos(course), speed * math.sin(course), 0.0]))
         blur = rng.uniform(2.0, 8.0) if rng.random() < 0.4 else 0.0
-        return renderer.render(pos, att, [TargetPose(kind, tp, t_att)], light, rng, blur_px=blur, blur_angle_rad=rng.uniform(0, math.pi))
+        return renderer.render(pos, att, [TargetPose(kind, tp, t_att)], light, rng, blur_px=blur,
+                               blur_angle_rad=rng.uniform(0, math.pi), t=t)
 
 
 def _person_on_ground(cam: CameraModel, pos: np.ndarray, att: Rotation, min_px: float, rng: np.random.Generator) -> TargetPose | None:
@@ -185,11 +202,12 @@ def frame_boxes(frame: RenderedFrame, classes: tuple[str, ...] = CLASSES) -> np.
 
 def write_dataset(out_dir: str | Path, count: int, seed: int, split: str = "train", mosaic_size: int = 0,
                   width_px: int = 640, height_px: int = 480, kinds: tuple[str, ...] = CLASSES, follow_share: float = 0.0,
-                  ground_size_px: int = 2048) -> Path:
+                  ground_size_px: int = 2048, families: tuple[str, ...] = ()) -> Path:
     """Render ``count`` labelled frames of ``kinds`` into ``out_dir`` (YOLO layout, class ids in ``kinds``
     order); ``mosaic_size`` > 0 writes HSV-jittered mosaics."""
     kinds = tuple(kinds)
-    source = DatasetRenderer(split, width_px, height_px, ground_size_px, kinds=kinds, follow_share=follow_share)
+    source = DatasetRenderer(split, width_px, height_px, ground_size_px, kinds=kinds, follow_share=follow_share,
+                             families=tuple(families))
     out = Path(out_dir)
     (out / "images").mkdir(parents=True, exist_ok=True)
     (out / "labels").mkdir(parents=True, exist_ok=True)
@@ -231,9 +249,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--mosaic", type=int, default=0, help="write HSV-jittered mosaics of this size")
     p.add_argument("--kinds", nargs="+", default=list(CLASSES), help="target kinds drawn, in class-id order (e.g. person)")
     p.add_argument("--follow-share", type=float, default=0.0, help="share of drone frames drawn as chase views (0..1)")
+    p.add_argument("--families", nargs="+", default=[], choices=sorted(FAMILIES), metavar="FAMILY",
+                   help=f"render in these camera-world families ({', '.join(FAMILIES)}); default: the plain field")
     a = p.parse_args(argv)
     try:
-        write_dataset(a.out, a.count, a.seed, a.split, mosaic_size=a.mosaic, kinds=tuple(a.kinds), follow_share=a.follow_share)
+        write_dataset(a.out, a.count, a.seed, a.split, mosaic_size=a.mosaic, kinds=tuple(a.kinds), follow_share=a.follow_share,
+                      families=tuple(a.families))
     except ValueError as e:
         p.error(f"--kinds: {e}")
     return 0

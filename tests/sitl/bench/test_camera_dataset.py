@@ -85,3 +85,23 @@ def test_follow_views_put_one_target_near_the_image_centre():
         assert 8 <= lab.box[2] - lab.box[0] <= 200
     with pytest.raises(ValueError, match="follow_share"):
         DatasetRenderer("train", ground_size_px=256, follow_share=1.5)
+
+
+def test_a_dataset_from_camera_world_families_draws_another_world_reproducibly():
+    from sitl.bench.camera_dataset import DatasetRenderer
+
+    plain = DatasetRenderer("heldout", 320, 240, 512)
+    coast = DatasetRenderer("heldout", 320, 240, families=("coast",))
+    assert len(coast.renderers) == len(SPLITS["heldout"].ground_seeds)  # one world per family and ground seed
+    frames = [coast.sample(np.random.default_rng(seed)) for seed in range(6)]
+    again = coast.sample(np.random.default_rng(0))
+    assert np.array_equal(frames[0].image, again.image) and frames[0].labels == again.labels
+    assert sum(len(f.labels) for f in frames) >= 3
+    for f in frames:
+        for lab in f.labels:
+            x0, y0, x1, y1 = lab.box
+            assert 0 <= x0 < x1 <= 320 and 0 <= y0 < y1 <= 240
+    # The coast's ground (water, rock, overcast) is not the plain field's green: compare mean colours.
+    green = np.mean([plain.sample(np.random.default_rng(s)).image.reshape(-1, 3).mean(axis=0) for s in range(6)], axis=0)
+    grey = np.mean([f.image.reshape(-1, 3).mean(axis=0) for f in frames], axis=0)
+    assert green[1] - green[2] > grey[1] - grey[2] + 5  # the plain field is greener (G - R 22 vs 13 here)
