@@ -212,8 +212,9 @@ def _ports(resolved: ResolvedNode, textual: NodeSpec) -> dict[str, str]:
     assert spec is not None
     node_type = resolved.node_type
     out: dict[str, str] = {}
+    key_names = getattr(node_type.cls, "KEY_NAME_PORTS", ())  # entry names (SetBlackboard's output_key): text as written
     for port, arg in spec.ports.items():
-        if arg.from_text or is_reference_text(arg.value):
+        if arg.from_text or is_reference_text(arg.value) or port in key_names:
             out[port] = str(arg.value)
             continue
         text = textual.ports[port]
