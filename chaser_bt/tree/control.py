@@ -115,6 +115,8 @@ class Wait(_ControlPorts, py_trees.behaviour.Behaviour, register=False):
     INPUT_PORTS: ClassVar[dict[str, Port]] = {
         "duration_s": input_port(float, "seconds to wait"),
     }
+    DURATION_PORT: ClassVar[str] = "duration_s"
+    UNITS_PER_SECOND: ClassVar[float] = 1.0
 
     def __init__(self, name: str) -> None:
         super().__init__(name=name)
@@ -123,9 +125,10 @@ class Wait(_ControlPorts, py_trees.behaviour.Behaviour, register=False):
 
     @classmethod
     def check_ports(cls, values: Mapping[str, Any], child_count: int) -> PortCheck:
-        value = values.get("duration_s")
-        if isinstance(value, float) and not value >= 0.0:
-            return [("duration_s", f"duration_s must be >= 0, got {value}")]
+        port = cls.DURATION_PORT
+        value = values.get(port)
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and not value >= 0:
+            return [(port, f"{port} must be >= 0, got {value}")]
         return []
 
     def setup(self, **kwargs: Any) -> None:
@@ -136,9 +139,9 @@ class Wait(_ControlPorts, py_trees.behaviour.Behaviour, register=False):
 
     def update(self) -> Status:
         elapsed = now(self, self._clock) - self._start
-        duration = self.get_input("duration_s")
-        self.feedback_message = f"{elapsed:.1f}/{duration:.1f} s"
-        return Status.SUCCESS if elapsed >= duration else Status.RUNNING
+        duration = self.get_input(self.DURATION_PORT)
+        self.feedback_message = f"{elapsed:.1f}/{duration / self.UNITS_PER_SECOND:.1f} s"
+        return Status.SUCCESS if elapsed * self.UNITS_PER_SECOND >= duration else Status.RUNNING
 
 
 class SetBlackboard(_ControlPorts, py_trees.behaviour.Behaviour, register=False):
@@ -223,34 +226,12 @@ class ScriptCondition(Script, register=False):
         return Status.SUCCESS if truth(self.scripts["code"].run()) else Status.FAILURE
 
 
-class Sleep(_ControlPorts, py_trees.behaviour.Behaviour, register=False):
+class Sleep(Wait, register=False):
     """BT.CPP Sleep: RUNNING until ``msec`` have passed on the mission clock, then SUCCESS (0: at once)."""
 
     INPUT_PORTS: ClassVar[dict[str, Port]] = {"msec": input_port(int, "milliseconds to sleep")}
-
-    def __init__(self, name: str) -> None:
-        super().__init__(name=name)
-        self._clock: Clock | None = None
-        self._start = 0.0
-
-    @classmethod
-    def check_ports(cls, values: Mapping[str, Any], child_count: int) -> PortCheck:
-        value = values.get("msec")
-        if isinstance(value, int) and value < 0:
-            return [("msec", f"msec must be >= 0, got {value}")]
-        return []
-
-    def setup(self, **kwargs: Any) -> None:
-        self._clock = require_clock(self, kwargs)
-
-    def initialise(self) -> None:
-        self._start = now(self, self._clock)
-
-    def update(self) -> Status:
-        msec = self.get_input("msec")
-        if (now(self, self._clock) - self._start) * 1000.0 >= msec:
-            return Status.SUCCESS
-        return Status.RUNNING
+    DURATION_PORT: ClassVar[str] = "msec"
+    UNITS_PER_SECOND: ClassVar[float] = 1000.0
 
 
 #: Every built-in node, in the order a model export lists them.
