@@ -3,7 +3,8 @@
 // Usage: groot2_recorder TREE.xml OUT.json [PORT [TICKS]]
 // Registers Countdown and Tally (as tests/log/groot2_support.py writes them), builds the tree, starts
 // BT::Groot2Publisher on PORT (default 22667; PORT + 1 for its publisher), then on a REQ socket:
-// FULLTREE, STATUS, TOGGLE_RECORDING start; for each of TICKS ticks (default 6): tickOnce, STATUS,
+// FULLTREE, STATUS, TOGGLE_RECORDING start; for each of TICKS ticks (default 6): tickExactlyOnce (one root tick,
+// as chaser-bt's runner ticks: no re-tick on a wake-up signal), STATUS,
 // GET_TRANSITIONS; then BLACKBOARD, the hook and error requests. Every request and reply part is written to
 // OUT.json as hex.
 //
@@ -226,7 +227,7 @@ int main(int argc, char** argv)
   ask("recording_start", { header(RT::TOGGLE_RECORDING), "start" });
   for(int tick = 1; tick <= ticks; tick++)
   {
-    tree.tickOnce();
+    tree.tickExactlyOnce();
     ask("status_" + std::to_string(tick), { header(RT::STATUS) });
     ask("transitions_" + std::to_string(tick), { header(RT::GET_TRANSITIONS) });
   }
