@@ -285,6 +285,8 @@ def _run(args: argparse.Namespace) -> int:
     if result.status is not RunStatus.SUCCESS and args.signing_key is None and "no answer" in (result.message or ""):
         print("chaser-bt: run: the vehicle did not answer our commands; if it requires MAVLink 2 signing "
               "(`chaser-bt sitl --signing-key FILE` does), pass the same --signing-key", file=sys.stderr)
+    if result.status is RunStatus.INTERRUPTED:  # Ctrl-C or SIGTERM: the tree was halted, the aircraft left hovering
+        return EXIT_INTERRUPTED
     return EXIT_OK if result.status is RunStatus.SUCCESS else EXIT_FAILED
 
 
