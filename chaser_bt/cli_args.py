@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import difflib
+import math
 import sys
 import tempfile
 from pathlib import Path
@@ -80,13 +81,9 @@ def _number(cast: Callable[[str], float], ok: Callable[[float], bool], expected:
     return parse
 
 
-def _finite(x: float) -> bool:
-    return x == x and abs(x) != float("inf")
-
-
 seed = _number(int, lambda v: 0 <= v < 2**32, "in [0, 2^32)")
-positive_float = _number(float, lambda v: _finite(v) and v > 0, "> 0")
-non_negative_float = _number(float, lambda v: _finite(v) and v >= 0, ">= 0")
+positive_float = _number(float, lambda v: math.isfinite(v) and v > 0, "> 0")
+non_negative_float = _number(float, lambda v: math.isfinite(v) and v >= 0, ">= 0")
 positive_int = _number(int, lambda v: v > 0, ">= 1")
 non_negative_int = _number(int, lambda v: v >= 0, ">= 0")
 port = _number(int, lambda v: 1 <= v <= 65535, "in 1-65535 (a UDP/TCP port)")

@@ -3,6 +3,7 @@ the option or file, with a "did you mean" for a near miss, and never a traceback
 
 from __future__ import annotations
 
+import argparse
 import socket
 from pathlib import Path
 
@@ -113,3 +114,25 @@ def test_a_port_in_use_is_bad_input_naming_the_ports(capsys):
 def test_verbose_is_accepted_after_the_subcommand(capsys):
     assert main(["validate", PATROL, "-v"]) == 0
     assert main(["-v", "validate", PATROL]) == 0
+
+
+def _subcommand_parsers():
+    from chaser_bt.cli import _SIM_COMMANDS, _parser
+
+    names = list(_parser()._subparsers._group_actions[0].choices)
+    for name in names:  # the simulator commands' real parsers are built when they are named
+        parser = _parser([name]) if name in _SIM_COMMANDS else _parser()
+        yield name, parser._subparsers._group_actions[0].choices[name]
+
+
+@pytest.mark.parametrize("name,parser", list(_subcommand_parsers()), ids=lambda v: v if isinstance(v, str) else "")
+def test_help_describes_every_argument_with_its_default(name, parser):
+    assert parser.description, f"{name} has no description line"
+    for action in parser._actions:
+        if action.help == argparse.SUPPRESS or isinstance(action, argparse._HelpAction):
+            continue
+        what = action.option_strings[0] if action.option_strings else action.dest
+        assert action.help, f"{name} {what}: no help text"
+        has_default = action.default not in (None, False, argparse.SUPPRESS) and not action.required
+        if has_default and action.option_strings:
+            assert "default" in action.help, f"{name} {what}: help does not give the default {action.default!r}"

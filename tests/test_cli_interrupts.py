@@ -64,7 +64,7 @@ def test_campaign_stops_within_5_s_of_ctrl_c_with_workers(tmp_path):
         time.sleep(1.0)
         proc.send_signal(signal.SIGINT)
         sent = time.monotonic()
-        out, err = proc.communicate(timeout=30)
+        _, err = proc.communicate(timeout=30)
         took = time.monotonic() - sent
     finally:
         proc.kill()
