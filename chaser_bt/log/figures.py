@@ -11,7 +11,7 @@ report, a campaign's report and ``chaser-bt plot LOG`` on a recorded flight.
   against the desired values, with the camera's limits and the detection intervals shaded
   (figures 7 and 9, section 4).
 - :func:`plot_belief_snapshots` — the search belief maps (section 2.3).
-- :func:`plot_metric_cdfs` — a campaign's spread of the DESIGN §7 figures with the paper's values
+- :func:`plot_metric_cdfs` — a campaign's spread of the DESIGN §7 figures (docs/design.md) with the paper's values
   marked.
 
 Lines and markers carry a ``gid`` (``ownship/<run>/<phase>``, ``target/<run>``, ``event/<run>/<name>``,
@@ -35,6 +35,7 @@ from chaser_bt.log.trace import FlightTrace  # noqa: E402
 from chaser_bt.vision.camera import CameraModel  # noqa: E402
 
 __all__ = [
+    "METRIC_LABELS",
     "PAPER_VALUES",
     "QUIET_EVENTS",
     "phase_segments",
@@ -58,6 +59,20 @@ PAPER_VALUES: dict[str, float] = {
 
 #: Events the overhead plot leaves unmarked by default (the phase colours and the mode already say them).
 QUIET_EVENTS: frozenset[str] = frozenset({"phase", "mode"})
+
+#: Axis labels of the report keys, with units.
+METRIC_LABELS: dict[str, str] = {
+    "t_airborne_s": "radar validation to take-off altitude (s)",
+    "t_acquire_s": "take-off altitude to first acquisition (s)",
+    "target_in_fov_frac": "share of flight with the target in the FOV",
+    "detection_frac": "share of frames with a true detection",
+    "radar_assoc_frac": "share of 1 s windows with the ownship's track",
+    "wrong_assoc_frac": "share of windows with a wrong track",
+}
+
+#: How the relative-geometry plot names the target's position, by the trace's ``target_source``.
+_TARGET_SOURCE_LABEL = {"truth": "true", "telemetry": "from the intruder's telemetry",
+                        "estimate": "from the camera's estimate", "cue": "from the radar cue"}
 
 _DEFAULT_CAMERA = CameraModel()
 _CDF_KEYS = ("t_airborne_s", "t_acquire_s", "target_in_fov_frac", "detection_frac", "radar_assoc_frac")
@@ -113,8 +128,10 @@ def plot_overhead(traces: Sequence[FlightTrace], title: str = "", skip_events: C
         for phase, i0, i1 in phase_segments(phases):
             # Carry each segment one sample into the next so the track has no gaps.
             seg = xy[i0:min(i1 + 1, len(tr))]
-            label = phase if phase not in labelled else None
-            labelled.add(phase)
+            visible = len(seg) > 1 and float(np.ptp(seg, axis=0).max()) > 0.0  # a phase spent in one place draws nothing
+            label = phase if phase not in labelled and visible else None
+            if visible:
+                labelled.add(phase)
             (line,) = ax.plot(seg[:, 0], seg[:, 1], color=colours.get(phase, "C0"), lw=1.6, alpha=alpha, label=label)
             line.set_gid(f"ownship/{k}/{phase}")
         target = tr.target_enu[:, :2]
@@ -123,14 +140,26 @@ def plot_overhead(traces: Sequence[FlightTrace], title: str = "", skip_events: C
             labelled.add("target")
             (line,) = ax.plot(target[:, 0], target[:, 1], color="tab:red", ls="--", lw=1.2, alpha=alpha, label=label)
             line.set_gid(f"target/{k}")
+        places: list[tuple[np.ndarray, list[str]]] = []  # events drawn at one place share one label
+        span = max(float(np.ptp(xy, axis=0).max()), 1.0)
         for ev in tr.events:
             if ev.name in skip_events:
                 continue
             i = int(np.clip(np.searchsorted(tr.t, ev.t), 0, len(tr) - 1))
-            (mark,) = ax.plot([xy[i, 0]], [xy[i, 1]], "o", ms=5, color="black", alpha=alpha)
+            label = "events" if "events" not in labelled else None
+            labelled.add("events")
+            (mark,) = ax.plot([xy[i, 0]], [xy[i, 1]], "o", ms=5, color="black", alpha=alpha, label=label)
             mark.set_gid(f"event/{k}/{ev.name}")
-            if len(traces) == 1:
-                ax.annotate(ev.name, (xy[i, 0], xy[i, 1]), textcoords="offset points", xytext=(4, 4), fontsize=8)
+            near = next((names for at, names in places if np.hypot(*(at - xy[i])) < 0.02 * span), None)
+            if near is None:
+                places.append((xy[i].copy(), [ev.name]))
+            elif ev.name not in near:
+                near.append(ev.name)
+        if len(traces) == 1:
+            for n, (at, names) in enumerate(places):
+                ax.annotate(", ".join(names), (at[0], at[1]), textcoords="offset points", fontsize=8,
+                            xytext=(6, 6 + 9 * (n % 3)), gid=f"event_label/{n}",
+                            bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.7})
     ax.plot([0.0], [0.0], "k^", ms=8, label="home")
     ax.set_xlabel("east (m)")
     ax.set_ylabel("north (m)")
@@ -156,7 +185,8 @@ def plot_relative_geometry(
 ) -> Figure:
     """Target azimuth, elevation (deg) and range (m) relative to the ownship against time (figures 7 and 9).
 
-    Solid: the true relative position; red dashed: the desired one (azimuth 0, the trace's
+    Solid: the relative position (the truth in a rehearsal; from the intruder's telemetry or the
+    camera in a flight log, as the trace's ``target_source`` says); red dashed: the desired one (azimuth 0, the trace's
     ``desired_elevation_rad`` and ``desired_range_m`` where set); green band: the camera's limits
     with the aircraft level (half the FOV about the boresight, which is tilted ``camera.tilt_rad``
     down; range up to ``camera.max_range_m``); cyan: intervals with a true detection (single trace).
@@ -185,7 +215,8 @@ def plot_relative_geometry(
             (ax_el, "elevation", np.degrees(tr.elevation_rad)),
             (ax_r, "range", tr.slant_range_m),
         ):
-            (line,) = ax.plot(t, values, color="tab:blue", lw=1.2, alpha=alpha, label="true" if drawn == 0 else None)
+            label = _TARGET_SOURCE_LABEL.get(tr.target_source, f"from {tr.target_source}") if drawn == 0 else None
+            (line,) = ax.plot(t, values, color="tab:blue", lw=1.2, alpha=alpha, label=label)
             line.set_gid(f"{name}/{k}")
         if single:
             for n, (i0, i1) in enumerate(_intervals(np.nan_to_num(tr.detected, nan=0.0) > 0.5)):
@@ -240,13 +271,15 @@ def plot_belief_snapshots(trace: FlightTrace, max_panels: int = 6, title: str = 
         # mass[i, j] is over (x_i, y_j): imshow wants rows = y.
         img = ax.imshow(np.asarray(snap.mass).T, origin="lower", extent=extent, cmap="viridis", aspect="equal")
         img.set_gid(f"belief/{snap.t:g}")
-        fig.colorbar(img, ax=ax, shrink=0.8)
+        fig.colorbar(img, ax=ax, shrink=0.8).set_label("belief: target probability per cell", fontsize=8)
         if len(trace):
             i = int(np.clip(np.searchsorted(trace.t, snap.t, side="right") - 1, 0, len(trace) - 1))
-            ax.plot(trace.ownship_enu[: i + 1, 0], trace.ownship_enu[: i + 1, 1], color="white", lw=1.0)
-            ax.plot([trace.ownship_enu[i, 0]], [trace.ownship_enu[i, 1]], "w^", ms=7)[0].set_gid("ownship_now")
+            ax.plot(trace.ownship_enu[: i + 1, 0], trace.ownship_enu[: i + 1, 1], color="white", lw=1.0, label="ownship track")
+            ax.plot([trace.ownship_enu[i, 0]], [trace.ownship_enu[i, 1]], "w^", ms=7, label="ownship now")[0].set_gid("ownship_now")
             if np.isfinite(trace.target_enu[i, :2]).all():
-                ax.plot([trace.target_enu[i, 0]], [trace.target_enu[i, 1]], "x", color="tab:orange", ms=8, mew=2)[0].set_gid("target_now")
+                ax.plot([trace.target_enu[i, 0]], [trace.target_enu[i, 1]], "x", color="tab:orange", ms=8, mew=2,
+                        label="target now")[0].set_gid("target_now")
+            ax.legend(loc="upper right", fontsize=6, facecolor="0.85")
         ax.set_title(f"t = {snap.t:.1f} s", fontsize=9)
         ax.set_xlabel("east (m)", fontsize=8)
         ax.set_ylabel("north (m)", fontsize=8)
@@ -287,10 +320,10 @@ def plot_metric_cdfs(
             ax.axvline(paper[key], color="red", ls="--", lw=1.5, label=f"paper {paper[key]:g}").set_gid(f"paper/{key}")
         if key.endswith("_frac"):
             ax.set_xlim(-0.02, 1.02)
-        ax.set_xlabel(key)
+        ax.set_xlabel(METRIC_LABELS.get(key, key))
         ax.set_ylabel("fraction of runs")
         ax.set_ylim(0.0, 1.02)
         ax.grid(True, alpha=0.3)
-        ax.legend(loc="lower right", fontsize=7)
+        ax.legend(loc="best", fontsize=7, framealpha=0.6)
     fig.suptitle(title or f"campaign: {len(rows)} runs")
     return fig
