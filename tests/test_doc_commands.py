@@ -21,7 +21,7 @@ from chaser_bt.cli import _parser
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
-RUN = {"validate", "show", "nodes", "convert", "export-model", "chase-geometry"}
+RUN = {"validate", "show", "nodes", "convert", "export-model", "chase-geometry", "calibrate"}
 
 
 def _commands() -> list[tuple[str, str]]:
@@ -59,12 +59,19 @@ def test_a_documented_command_works_as_shown(doc, command, tmp_path, capsys, mon
         assert done.returncode == 0, done.stderr
         for option in (w for w in words[2:] if w.startswith("--")):
             assert option in done.stdout, f"{doc}: {command}: {words[1]} has no {option}"
-    elif words[0] == "python":  # python -m pytest PATHS: the paths exist (checked above)
-        assert words[2] == "pytest"
+    elif words[0] == "python" and words[2] == "pytest":  # python -m pytest PATHS: the paths exist (checked above)
+        pass
+    elif words[0] == "python":  # python -m MODULE ...: run in the scratch folder
+        env = dict(os.environ, PYTHONPATH=str(ROOT))
+        done = subprocess.run([sys.executable, *words[1:]], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
+        assert done.returncode == 0, done.stderr
     else:
         assert words[0] == "chaser-bt", command
-        argv = words[1:]
+        argv = words[1:words.index(">")] if ">" in words else words[1:]
         monkeypatch.chdir(tmp_path)  # outputs a doc names land in a scratch folder
+        if argv[0] == "calibrate":  # the flight the doc writes first
+            subprocess.run([sys.executable, "-m", "sitl.bench.radar_trials", argv[1]], cwd=tmp_path, check=True,
+                           env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True, timeout=120)
         if any(re.fullmatch(r"[A-Z][A-Z_]*", w) for w in argv):  # a synopsis (TREE, DIR ...): its options exist
             sub = _parser(argv)._subparsers._group_actions[0].choices[argv[0]]
             for option in (w for w in argv if w.startswith("-")):
