@@ -124,12 +124,14 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                    help="tick on the vehicle's boot time (default; right at any sim speed-up) or on the wall clock")
     p.add_argument("--show-ticks", action="store_true", help="print the tree with statuses whenever a status changes")
     p.add_argument("--radar", metavar="HOST:PORT", help="receive ground-radar datagrams here (docs/radar.md; default: no radar)")
-    p.add_argument("--radar-pose", type=Path, metavar="FILE.json",
+    p.add_argument("--radar-pose", type=arg.input_file, metavar="FILE.json",
                    help="the radar's pose: `chaser-bt calibrate --json` output (required with --radar)")
     p.add_argument("--radar-time-offset", type=float, default=0.0, metavar="S", help="radar time + S = mission time, s (default 0)")
     p.add_argument("--camera", metavar="SOURCE", help="video file, stream URL or device index for the on-board camera (default: none)")
     p.add_argument("--camera-size", type=_size, metavar="WxH", help="resize camera frames to this size, px (default: as captured)")
     p.add_argument("--no-telemetry", action="store_true", help="do not listen for the intruder's own MAVLink position")
+    p.add_argument("--origin", type=arg.geodetic_point, metavar="LAT,LON[,ALT]",
+                   help="the mission's ENU origin, deg, deg, m (default: the vehicle's home, from HOME_POSITION)")
     _signing_arguments(p)
     add_recording_arguments(p)
 
@@ -253,7 +255,9 @@ def _run(args: argparse.Namespace) -> int:
 
     tree = _load_tree(args.tree)
     hook = _recording_hook(args)
-    config = LinkConfig(signing=_signing(args))
+    from chaser_bt.geo import GeoPoint
+
+    config = LinkConfig(signing=_signing(args), origin=None if args.origin is None else GeoPoint(*args.origin))
     try:
         link = VehicleLink.connect(args.connect, config)
     except ValueError as exc:  # a malformed connection string
@@ -282,6 +286,9 @@ def _run(args: argparse.Namespace) -> int:
         link.close()
     state = link.state
     print(f"{result.status.value}: {result.message or '-'} after {result.ticks} ticks; vehicle {state.mode}, {'armed' if state.armed else 'disarmed'}")
+    if "no ENU frame yet" in (result.message or ""):
+        print("chaser-bt: run: the vehicle has not sent its home yet (a vehicle already flying, or just "
+              "reconnected): wait for it, or give the mission's origin with --origin LAT,LON,ALT", file=sys.stderr)
     if result.status is not RunStatus.SUCCESS and args.signing_key is None and "no answer" in (result.message or ""):
         print("chaser-bt: run: the vehicle did not answer our commands; if it requires MAVLink 2 signing "
               "(`chaser-bt sitl --signing-key FILE` does), pass the same --signing-key", file=sys.stderr)

@@ -18,7 +18,7 @@ from typing import Callable, Iterable, NoReturn
 
 __all__ = [
     "PROG", "ChaserParser", "did_you_mean", "seed", "positive_float", "non_negative_float", "positive_int",
-    "non_negative_int", "port", "output_file", "output_dir", "add_verbose_everywhere",
+    "non_negative_int", "port", "geodetic_point", "input_file", "output_file", "output_dir", "add_verbose_everywhere",
 ]
 
 PROG = "chaser-bt"
@@ -87,6 +87,28 @@ non_negative_float = _number(float, lambda v: math.isfinite(v) and v >= 0, ">= 0
 positive_int = _number(int, lambda v: v > 0, ">= 1")
 non_negative_int = _number(int, lambda v: v >= 0, ">= 0")
 port = _number(int, lambda v: 1 <= v <= 65535, "in 1-65535 (a UDP/TCP port)")
+
+
+def geodetic_point(text: str) -> tuple[float, float, float]:
+    """``LAT,LON[,ALT]`` (deg, deg, m; ALT default 0) -> (lat, lon, alt)."""
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) not in (2, 3) or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"expected LAT,LON or LAT,LON,ALT in deg, deg, m, got {text!r}")
+    lat, lon, alt = (*values, 0.0)[:3]
+    if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+        raise argparse.ArgumentTypeError(f"expected a latitude in [-90, 90] and a longitude in [-180, 180], got {text}")
+    return lat, lon, alt
+
+
+def input_file(text: str) -> Path:
+    """A file to read: it exists and is a file."""
+    path = Path(text)
+    if not path.is_file():
+        raise argparse.ArgumentTypeError(f"no such file {path}" if not path.exists() else f"{path} is not a file")
+    return path
 
 
 def _writable_folder(folder: Path) -> str | None:
