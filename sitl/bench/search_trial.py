@@ -285,7 +285,7 @@ def run_search_trial(args: argparse.Namespace) -> int:
         print(json.dumps(out, ensure_ascii=False))
     else:
         for key, value in out.items():
-            print(f"{key:>16}: {value}")
+            print(f"{key:>16}: {'-' if value is None else value}")
     return 0 if trial.outcome == "searched" else 1
 
 
