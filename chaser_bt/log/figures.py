@@ -249,8 +249,9 @@ def plot_relative_geometry(
 def plot_belief_snapshots(trace: FlightTrace, max_panels: int = 6, title: str = "") -> Figure:
     """The search belief (summed over altitude) at up to ``max_panels`` snapshots, evenly chosen.
 
-    Each panel shows the belief mass (image ``belief/<i>``), the ownship's track up to that time and
-    its position then, and the target's position then when known.
+    Each panel shows the belief normalised to sum 1 (image ``belief/<i>``; the title gives the mass
+    when it is not 1), the ownship's track up to that time and its position then, and the target's
+    position then when known.
     """
     snaps = trace.beliefs
     if len(snaps) > max_panels:
@@ -269,9 +270,13 @@ def plot_belief_snapshots(trace: FlightTrace, max_panels: int = 6, title: str = 
         dy = float(snap.y_m[1] - snap.y_m[0]) if len(snap.y_m) > 1 else 1.0
         extent = (snap.x_m[0] - dx / 2, snap.x_m[-1] + dx / 2, snap.y_m[0] - dy / 2, snap.y_m[-1] + dy / 2)
         # mass[i, j] is over (x_i, y_j): imshow wants rows = y.
-        img = ax.imshow(np.asarray(snap.mass).T, origin="lower", extent=extent, cmap="viridis", aspect="equal")
+        # Shown normalised, so a log (the planner's belief, which loses mass with every look that
+        # sees nothing) and a rehearsal report (normalised) draw on one scale; the title gives the mass.
+        mass = np.asarray(snap.mass, float)
+        total = float(mass.sum())
+        img = ax.imshow((mass / total if total > 0 else mass).T, origin="lower", extent=extent, cmap="viridis", aspect="equal")
         img.set_gid(f"belief/{snap.t:g}")
-        fig.colorbar(img, ax=ax, shrink=0.8).set_label("belief: target probability per cell", fontsize=8)
+        fig.colorbar(img, ax=ax, shrink=0.8).set_label("share of the belief per cell", fontsize=8)
         if len(trace):
             i = int(np.clip(np.searchsorted(trace.t, snap.t, side="right") - 1, 0, len(trace) - 1))
             ax.plot(trace.ownship_enu[: i + 1, 0], trace.ownship_enu[: i + 1, 1], color="white", lw=1.0, label="ownship track")
@@ -280,7 +285,7 @@ def plot_belief_snapshots(trace: FlightTrace, max_panels: int = 6, title: str = 
                 ax.plot([trace.target_enu[i, 0]], [trace.target_enu[i, 1]], "x", color="tab:orange", ms=8, mew=2,
                         label="target now")[0].set_gid("target_now")
             ax.legend(loc="upper right", fontsize=6, facecolor="0.85")
-        ax.set_title(f"t = {snap.t:.1f} s", fontsize=9)
+        ax.set_title(f"t = {snap.t:.1f} s" + (f", belief mass {total:.3g}" if abs(total - 1.0) > 1e-3 else ""), fontsize=9)
         ax.set_xlabel("east (m)", fontsize=8)
         ax.set_ylabel("north (m)", fontsize=8)
     fig.suptitle(title or "search belief")

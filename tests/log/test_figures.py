@@ -108,7 +108,9 @@ def test_belief_snapshots_show_the_mass_with_x_along_columns():
     images = [im for ax in fig.axes for im in ax.get_images()]
     # Three snapshots evenly chosen: indices 0, 4 (3.5 rounds to even), 7.
     assert [im.get_gid() for im in images] == ["belief/0", "belief/4", "belief/7"]
-    np.testing.assert_allclose(images[2].get_array(), (mass * 8).T)
+    np.testing.assert_allclose(images[2].get_array(), mass.T / mass.sum())  # normalised: one scale for logs and reports
+    assert fig.axes[0].get_title() == "t = 0.0 s"  # mass 1.0
+    assert [ax.get_title() for ax in fig.axes if ax.get_images()][2] == "t = 7.0 s, belief mass 8"
     assert images[0].get_extent() == [-5.0, 25.0, -5.0, 15.0]
 
 
@@ -173,7 +175,7 @@ def test_belief_snapshots_render_labelled_with_a_colour_bar_label(tmp_path):
                      beliefs=[BeliefSnapshot(0.0, x, y, np.full((2, 2), 0.25))])
     fig = plot_belief_snapshots(tr)
     _axes_are_labelled(fig)
-    assert any(ax.get_ylabel().startswith("belief") for ax in fig.axes if ax.get_label() == "<colorbar>")
+    assert any(ax.get_ylabel() == "share of the belief per cell" for ax in fig.axes if ax.get_label() == "<colorbar>")
     save_figure(fig, tmp_path / "b.png")
 
 
