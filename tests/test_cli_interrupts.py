@@ -73,3 +73,26 @@ def test_campaign_stops_within_5_s_of_ctrl_c_with_workers(tmp_path):
     assert "Traceback" not in err and "run the same command again to resume" in err
     kept = list((tmp_path / "c").rglob("seed_*.json"))
     assert 0 < len(kept) < 60 and f"{len(kept)} finished run(s) kept" in err
+
+
+@pytest.mark.slow
+def test_run_on_sigterm_halts_the_tree_finishes_the_log_and_exits_130(tmp_path):
+    sim = _cli("sitl", "--scenario", SCENARIO, "--speedup", "5", "--tcp-port", "15761", "--udp-port", "15551")
+    try:
+        _wait_for_line(sim.stdout, "connect with", 60)
+        run = _cli("run", PATROL, "--connect", "tcp:127.0.0.1:15761", "--record", str(tmp_path / "f.mcap"))
+        try:
+            _wait_for_line(run.stdout, "flying", 60)
+            time.sleep(3.0)
+            run.send_signal(signal.SIGTERM)
+            out, err = run.communicate(timeout=60)
+        finally:
+            run.kill()
+    finally:
+        sim.send_signal(signal.SIGTERM)
+        sim.communicate(timeout=30)
+    assert run.returncode == 130, err
+    assert "interrupted" in out and "Traceback" not in err
+    from chaser_bt.log.replay import read_log
+
+    assert not read_log(tmp_path / "f.mcap").truncated  # the recorder finished the file
