@@ -189,7 +189,8 @@ def plot_relative_geometry(
     camera in a flight log, as the trace's ``target_source`` says); red dashed: the desired one (azimuth 0, the trace's
     ``desired_elevation_rad`` and ``desired_range_m`` where set); green band: the camera's limits
     with the aircraft level (half the FOV about the boresight, which is tilted ``camera.tilt_rad``
-    down; range up to ``camera.max_range_m``); cyan: intervals with a true detection (single trace).
+    down; range up to ``camera.max_range_m``, the range the search's sensor model assumes); cyan:
+    intervals with a true detection (the pipeline's box on the target's true box; single trace).
 
     ``align_event``: plot time from that event of each trace (e.g. ``"acquired"``) instead of
     mission time; traces without the event are left out.
@@ -229,7 +230,9 @@ def plot_relative_geometry(
     half_h, half_v, tilt = math.degrees(camera.hfov_rad / 2), math.degrees(camera.vfov_rad / 2), math.degrees(camera.tilt_rad)
     ax_az.axhspan(-half_h, half_h, color="green", alpha=0.08, label="camera FOV")
     ax_el.axhspan(tilt - half_v, tilt + half_v, color="green", alpha=0.08, label="camera FOV")
-    ax_r.axhspan(camera.min_range_m, camera.max_range_m, color="green", alpha=0.08, label="detection range")
+    # The camera model's range is what the search assumes it sees (its sensor model), not the detector's
+    # limit: with the cue's focus window the detector can match the target well beyond it.
+    ax_r.axhspan(camera.min_range_m, camera.max_range_m, color="green", alpha=0.08, label="search's sensor range")
     ax_az.axhline(0.0, color="red", ls="--", lw=1.5, label="desired").set_gid("desired/azimuth")
     if math.isfinite(desired_el):
         ax_el.axhline(math.degrees(desired_el), color="red", ls="--", lw=1.5, label="desired").set_gid("desired/elevation")
