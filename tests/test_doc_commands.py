@@ -89,3 +89,27 @@ def test_a_documented_command_works_as_shown(doc, command, tmp_path, capsys, mon
         args = _parser(argv).parse_args(argv)
         if argv[0] in RUN:
             assert args.handler(args) == 0, capsys.readouterr().err
+
+
+def _inline_commands() -> list[tuple[str, str]]:
+    """(doc, command) for each ``chaser-bt ...`` span in the prose (often a synopsis with TREE, FILE ...)."""
+    found = []
+    for doc in DOCS:
+        prose = re.sub(r"```.*?```", "", doc.read_text(), flags=re.S)
+        for span in re.finditer(r"`((?:\.venv/bin/)?chaser-bt [^`]+)`", prose):
+            found.append((doc.name, " ".join(span.group(1).split()).replace(".venv/bin/", "")))
+    return found
+
+
+INLINE = _inline_commands()
+
+
+@pytest.mark.parametrize("doc,command", INLINE, ids=[f"{d}: {c[:60]}" for d, c in INLINE])
+def test_a_command_named_in_the_prose_has_the_options_it_shows(doc, command):
+    words = command.replace("[", " ").replace("]", " ").split()
+    name = words[1]
+    choices = _parser([name])._subparsers._group_actions[0].choices
+    assert name in choices, f"{doc}: {command}: no command {name}"
+    known = choices[name]._option_string_actions
+    for option in (w for w in words[2:] if w.startswith("-") and not re.fullmatch(r"-[\d.]+", w)):
+        assert option in known, f"{doc}: {command}: {name} has no option {option}"
