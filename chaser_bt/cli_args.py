@@ -18,7 +18,7 @@ from typing import Callable, Iterable, NoReturn
 
 __all__ = [
     "PROG", "ChaserParser", "did_you_mean", "seed", "positive_float", "non_negative_float", "positive_int",
-    "non_negative_int", "port", "geodetic_point", "input_file", "output_file", "output_dir", "add_verbose_everywhere",
+    "non_negative_int", "port", "listen_port", "geodetic_point", "input_file", "output_file", "output_dir", "add_verbose_everywhere",
 ]
 
 PROG = "chaser-bt"
@@ -87,6 +87,7 @@ non_negative_float = _number(float, lambda v: math.isfinite(v) and v >= 0, ">= 0
 positive_int = _number(int, lambda v: v > 0, ">= 1")
 non_negative_int = _number(int, lambda v: v >= 0, ">= 0")
 port = _number(int, lambda v: 1 <= v <= 65535, "in 1-65535 (a UDP/TCP port)")
+listen_port = _number(int, lambda v: 0 <= v <= 65535, "in 0-65535 (a TCP port; 0: any free one)")
 
 
 def geodetic_point(text: str) -> tuple[float, float, float]:

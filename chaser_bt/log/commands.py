@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 from typing import Any, Mapping
 
-from chaser_bt.cli_args import output_dir, output_file, port
+from chaser_bt.cli_args import listen_port, output_dir, output_file
 
 __all__ = ["add_command", "add_recording_arguments", "RecordingError", "RecordingHook", "run_replay", "run_plot"]
 
@@ -60,8 +60,8 @@ def add_recording_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--record-frames", choices=("jpeg", "png"), default="jpeg",
                         help="camera frames: jpeg, 5 per second (default), or png, every frame (lossless: replay "
                              "re-runs the detector exactly)")
-    parser.add_argument("--live", type=port, nargs="?", const=DEFAULT_PORT, metavar="PORT",
-                        help=f"serve the flight live to Foxglove on ws://127.0.0.1:PORT (PORT default {DEFAULT_PORT}; "
+    parser.add_argument("--live", type=listen_port, nargs="?", const=DEFAULT_PORT, metavar="PORT",
+                        help=f"serve the flight live to Foxglove on ws://127.0.0.1:PORT (PORT default {DEFAULT_PORT}, 0: any free one; "
                              "default: no live view)")
 
 
