@@ -1,8 +1,9 @@
 """`chaser-bt`: validate, show, run and rehearse mission trees; start the built-in simulator.
 
 Exit codes: 0 success, 1 the mission failed or the vehicle could not be flown, 2 bad input
-(an invalid tree or scenario, a bad argument), 130 interrupted (Ctrl-C or SIGTERM). The simulator and the rehearsal harness are
-imported lazily: chaser_bt itself never depends on ``sitl`` (docs/design.md §2).
+(an invalid tree or scenario, a bad argument), 130 interrupted (Ctrl-C or SIGTERM). Arguments are
+checked by :mod:`chaser_bt.cli_args` as the command line is read. The simulator and the rehearsal
+harness are imported lazily: chaser_bt itself never depends on ``sitl`` (docs/design.md §2).
 """
 
 from __future__ import annotations
