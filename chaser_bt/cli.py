@@ -171,8 +171,10 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     p.add_argument("--speedup", type=arg.positive_float, default=1.0, metavar="X", help="simulated seconds per wall second (default 1)")
     p.add_argument("--seed", type=arg.seed, default=DEFAULT_SEED, metavar="N",
                    help=f"simulator seed, as rehearse's (default {DEFAULT_SEED})")
-    p.add_argument("--tcp-port", type=arg.port, default=5760, metavar="PORT", help="TCP port to listen on, as ArduPilot SITL (default 5760)")
-    p.add_argument("--udp-port", type=arg.port, default=14550, metavar="PORT", help="UDP port to send to, as a ground station's (default 14550)")
+    p.add_argument("--tcp-port", type=arg.listen_port, default=5760, metavar="PORT",
+                   help="TCP port to listen on, as ArduPilot SITL (default 5760; 0: any free one, printed)")
+    p.add_argument("--udp-port", type=arg.listen_port, default=14550, metavar="PORT",
+                   help="UDP port to listen on, reached with udpout: (default 14550; 0: any free one, printed)")
     _signing_arguments(p)
     arg.add_verbose_everywhere(sub)
     return parser

@@ -87,7 +87,7 @@ non_negative_float = _number(float, lambda v: math.isfinite(v) and v >= 0, ">= 0
 positive_int = _number(int, lambda v: v > 0, ">= 1")
 non_negative_int = _number(int, lambda v: v >= 0, ">= 0")
 port = _number(int, lambda v: 1 <= v <= 65535, "in 1-65535 (a UDP/TCP port)")
-listen_port = _number(int, lambda v: 0 <= v <= 65535, "in 0-65535 (a TCP port; 0: any free one)")
+listen_port = _number(int, lambda v: 0 <= v <= 65535, "in 0-65535 (a port; 0: any free one)")
 
 
 def geodetic_point(text: str) -> tuple[float, float, float]:

@@ -53,7 +53,7 @@ BAD_INPUTS = [
     (["run", PATROL, "--connect", "tcp:127.0.0.1:9", "--radar-pose", "{tmp}/pose.json"], "--radar-pose"),
     (["sitl", "--scenario", SCENARIO, "--speedup", "0"], "--speedup"),
     (["sitl", "--scenario", SCENARIO, "--tcp-port", "99999"], "--tcp-port"),
-    (["sitl", "--scenario", SCENARIO, "--udp-port", "0"], "--udp-port"),
+    (["sitl", "--scenario", SCENARIO, "--udp-port", "-1"], "--udp-port"),
     (["sitl", "--scenario", SCENARIO, "--seed", "-1"], "--seed"),
     (["search-trial", "--seed", "-1"], "--seed"),
     (["search-trial", "--horizn", "3"], "did you mean --horizon"),
