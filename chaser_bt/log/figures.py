@@ -112,8 +112,10 @@ def _phase_colours(traces: Sequence[FlightTrace]) -> dict[str, tuple]:
 def plot_overhead(traces: Sequence[FlightTrace], title: str = "", skip_events: Collection[str] = QUIET_EVENTS) -> Figure:
     """Overhead (east, north) tracks of the ownship, coloured by phase, and of the target, dashed.
 
-    Events are marked with a dot on the ownship's track (and named when there is a single trace),
-    except those named in ``skip_events`` (phase and mode changes: the colours already show them).
+    Events are marked with a dot on the ownship's track (and named, one label per place, when there
+    is a single trace), except those named in ``skip_events`` (phase and mode changes: the colours
+    already show them). A search-and-rescue trace also shows the people (``meta["people_enu"]``)
+    and the find (``meta["find_enu"]``).
     A trace without phase labels draws its ownship track in one colour.
     """
     fig, ax = plt.subplots(figsize=(7.5, 7.0), layout="constrained")
@@ -155,6 +157,15 @@ def plot_overhead(traces: Sequence[FlightTrace], title: str = "", skip_events: C
                 places.append((xy[i].copy(), [ev.name]))
             elif ev.name not in near:
                 near.append(ev.name)
+        for person in tr.meta.get("people_enu", []):  # a search-and-rescue rehearsal: the truth, and the find
+            label = "person (truth)" if "person" not in labelled else None
+            labelled.add("person")
+            ax.plot([person[0]], [person[1]], "*", ms=13, color="tab:green", mec="black", alpha=alpha, label=label)[0].set_gid(f"person/{k}")
+        if tr.meta.get("find_enu") is not None:
+            find = tr.meta["find_enu"]
+            label = "find" if "find" not in labelled else None
+            labelled.add("find")
+            ax.plot([find[0]], [find[1]], "P", ms=9, color="tab:purple", alpha=alpha, label=label)[0].set_gid(f"find/{k}")
         if len(traces) == 1:
             for n, (at, names) in enumerate(places):
                 ax.annotate(", ".join(names), (at[0], at[1]), textcoords="offset points", fontsize=8,

@@ -30,7 +30,7 @@ from chaser_bt.mission.runner import MissionRunner, StatusChange
 from chaser_bt.tree import MissionTree, load_tree, reset_blackboard
 from chaser_bt.vehicle import LinkConfig, VehicleError
 from sitl.bench.in_process import InProcessVehicle
-from sitl.bench.sar_scoring import SarObserver
+from sitl.bench.sar_scoring import SarObserver, people_enu
 from sitl.bench.scoring import RehearsalObserver
 from sitl.bench.sensors import SensorOptions, build_sensors
 from sitl.simulator import Simulator
@@ -239,7 +239,13 @@ def rehearse(
         radar_yaw_err_deg=pose_err[1],
         sensors_wall_s=round(sensors_wall, 3),
     )
-    report.trace = observer.trace({"tree": tree.name, "scenario": scenario.name, "seed": seed, "outcome": outcome})
+    meta: dict = {"tree": tree.name, "scenario": scenario.name, "seed": seed, "outcome": outcome}
+    people = people_enu(sim.scenario, sim.time_s)
+    if people:  # for the overhead figure: where the people were, and the find
+        meta["people_enu"] = [[round(float(v), 2) for v in p] for p in people]
+        if sar.find is not None:
+            meta["find_enu"] = [round(float(v), 2) for v in sar.find.position_enu]
+    report.trace = observer.trace(meta)
     if interrupted:
         raise RehearsalInterrupted(report)
     return report

@@ -184,3 +184,11 @@ def test_cdfs_render_with_axis_labels_in_words_and_units(tmp_path):
     _axes_are_labelled(fig)
     assert fig.axes[0].get_xlabel() == "take-off altitude to first acquisition (s)"
     save_figure(fig, tmp_path / "c.png")
+
+
+def test_overhead_of_a_search_and_rescue_trace_draws_the_person_and_the_find():
+    tr = _square_trace()
+    tr.meta.update(people_enu=[[30.0, 40.0, 0.0]], find_enu=[30.5, 39.0, 0.0])
+    lines = _lines(plot_overhead([tr]), "")
+    assert list(lines["person/0"].get_xydata()[0]) == [30.0, 40.0]
+    assert list(lines["find/0"].get_xydata()[0]) == [30.5, 39.0]
