@@ -1,26 +1,34 @@
 """`chaser-bt`: validate, show, run and rehearse mission trees; start the built-in simulator.
 
 Exit codes: 0 success, 1 the mission failed or the vehicle could not be flown, 2 bad input
-(an invalid tree or scenario, a bad argument). The simulator and the rehearsal harness are
-imported lazily: chaser_bt itself never depends on ``sitl`` (DESIGN §2).
+(an invalid tree or scenario, a bad argument), 130 interrupted (Ctrl-C or SIGTERM). Arguments are
+checked by :mod:`chaser_bt.cli_args` as the command line is read. The simulator and the rehearsal
+harness are imported lazily: chaser_bt itself never depends on ``sitl`` (docs/design.md §2).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import errno
 import importlib
 import json
 import logging
+import signal
 import sys
+import threading
 from pathlib import Path
 from typing import Callable, Sequence
 
+from chaser_bt import cli_args as arg
+from chaser_bt.cli_args import ChaserParser
 from chaser_bt.log.commands import add_recording_arguments
 from chaser_bt.log.groot2.commands import add_groot2_arguments, start_hook
 
 __all__ = ["main"]
 
-EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
+DEFAULT_SEED = 1  # rehearse's and sitl's: the same seed flies the same flight in both
 
 # Packages that bring their own sub-commands: each has ``add_command(subparsers)``.
 _COMMAND_MODULES = (
@@ -31,7 +39,7 @@ _COMMAND_MODULES = (
     "chaser_bt.log.commands",
 )
 
-# Commands that run the simulator live in sitl/ and are imported only when named (DESIGN §2: chaser_bt
+# Commands that run the simulator live in sitl/ and are imported only when named (docs/design.md §2: chaser_bt
 # reaches the simulator through lazily imported entry points); the others are listed but not loaded.
 _SIM_COMMANDS = {
     "campaign": ("sitl.bench.campaign", "rehearse a tree over many seeds and scenarios in parallel; report and plots"),
@@ -54,18 +62,41 @@ def main(argv: Sequence[str] | None = None) -> int:
         format="%(levelname)s %(name)s: %(message)s",
     )
     try:
-        return args.handler(args)
+        with _sigterm_as_interrupt():
+            return args.handler(args)
     except _BadInput as exc:
         print(f"chaser-bt: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"\nchaser-bt: {args.command}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     except BrokenPipeError:  # output piped into `head` and the like
         sys.stderr.close()
         return EXIT_OK
 
 
+@contextlib.contextmanager
+def _sigterm_as_interrupt():
+    """SIGTERM stops a command the way Ctrl-C does (the mission is halted and handed back hovering)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="chaser-bt", description=__doc__.splitlines()[0])
-    parser.add_argument("-v", "--verbose", action="count", default=0, help="more logging (-vv for debug)")
+    parser = ChaserParser(prog="chaser-bt", description=__doc__.splitlines()[0], epilog=_EPILOG,
+                          formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("-v", "--verbose", action="count", default=0, help="more logging (-vv for debug); "
+                        "accepted before or after the subcommand")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     def command(name: str, handler: Callable[[argparse.Namespace], int], help_: str) -> argparse.ArgumentParser:
@@ -73,47 +104,59 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
         p.set_defaults(handler=handler)
         return p
 
+    def tree_argument(p: argparse.ArgumentParser) -> None:
+        p.add_argument("tree", type=Path, metavar="TREE", help="mission tree file: YAML (docs/trees.md) or BT.CPP v4 XML")
+
     p = command("validate", _validate, "check a tree against the behaviour declarations; list every problem")
-    p.add_argument("tree", type=Path)
+    tree_argument(p)
 
     p = command("show", _show, "print a tree as a unicode outline (or Graphviz dot) with its port values")
-    p.add_argument("tree", type=Path)
-    p.add_argument("--format", choices=("unicode", "dot"), default="unicode", help="dot: pipe into `dot -Tpng`")
+    tree_argument(p)
+    p.add_argument("--format", choices=("unicode", "dot"), default="unicode",
+                   help="unicode outline (default) or dot: pipe into `dot -Tpng`")
 
     command("nodes", _nodes, "list every node a tree can use, with its ports (from their declarations)")
 
     p = command("run", _run, "fly a tree against a vehicle (the simulator, ArduPilot SITL or a real ArduCopter)")
-    p.add_argument("tree", type=Path)
-    p.add_argument("--connect", required=True, metavar="URL", help="pymavlink connection string: tcp:HOST:PORT, udpout:, udpin:, serial device")
-    p.add_argument("--rate-hz", type=float, default=10.0, help="tick rate (default 10)")
-    p.add_argument("--clock", choices=("vehicle", "wall"), default="vehicle", help="tick on the vehicle's boot time (default; right at any sim speed-up) or on the wall clock")
+    tree_argument(p)
+    p.add_argument("--connect", required=True, metavar="URL",
+                   help="pymavlink connection string: tcp:HOST:PORT, udpout:HOST:PORT, udpin:HOST:PORT or a serial device (required)")
+    p.add_argument("--rate-hz", type=arg.positive_float, default=10.0, metavar="HZ", help="tick rate, Hz (default 10)")
+    p.add_argument("--clock", choices=("vehicle", "wall"), default="vehicle",
+                   help="tick on the vehicle's boot time (default; right at any sim speed-up) or on the wall clock")
     p.add_argument("--show-ticks", action="store_true", help="print the tree with statuses whenever a status changes")
-    p.add_argument("--radar", metavar="HOST:PORT", help="receive ground-radar datagrams here (docs/radar.md)")
-    p.add_argument("--radar-pose", type=Path, metavar="FILE.json", help="the radar's pose: `chaser-bt calibrate --json` output")
-    p.add_argument("--radar-time-offset", type=float, default=0.0, metavar="S", help="radar time + S = mission time (default 0)")
-    p.add_argument("--camera", metavar="SOURCE", help="video file, stream URL or device index for the on-board camera")
-    p.add_argument("--camera-size", type=_size, metavar="WxH", help="resize camera frames to this size")
+    p.add_argument("--radar", metavar="HOST:PORT", help="receive ground-radar datagrams here (docs/radar.md; default: no radar)")
+    p.add_argument("--radar-pose", type=arg.input_file, metavar="FILE.json",
+                   help="the radar's pose: `chaser-bt calibrate --json` output (required with --radar)")
+    p.add_argument("--radar-time-offset", type=float, default=0.0, metavar="S", help="radar time + S = mission time, s (default 0)")
+    p.add_argument("--camera", metavar="SOURCE", help="video file, stream URL or device index for the on-board camera (default: none)")
+    p.add_argument("--camera-size", type=_size, metavar="WxH", help="resize camera frames to this size, px (default: as captured)")
     p.add_argument("--no-telemetry", action="store_true", help="do not listen for the intruder's own MAVLink position")
+    p.add_argument("--origin", type=arg.geodetic_point, metavar="LAT,LON[,ALT]",
+                   help="the mission's ENU origin, deg, deg, m (default: the vehicle's home, from HOME_POSITION)")
     _signing_arguments(p)
     add_recording_arguments(p)
     add_groot2_arguments(p)
 
-    p = command("rehearse", _rehearse, "fly a tree against the in-process simulator and report")
-    p.add_argument("tree", type=Path)
-    p.add_argument("--scenario", required=True, type=Path)
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--rate-hz", type=float, default=10.0)
+    p = command("rehearse", _rehearse, "fly a tree against the in-process simulator and report (Ctrl-C: a partial report)")
+    tree_argument(p)
+    p.add_argument("--scenario", required=True, type=Path, metavar="FILE",
+                   help="scenario file (sitl/scenarios/README.md; required)")
+    p.add_argument("--seed", type=arg.seed, default=DEFAULT_SEED, metavar="N",
+                   help=f"simulator seed: the same seed flies the same flight (default {DEFAULT_SEED})")
+    p.add_argument("--rate-hz", type=arg.positive_float, default=10.0, metavar="HZ", help="tick rate, Hz (default 10)")
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")
     p.add_argument("--show-ticks", action="store_true", help="print the tree with statuses whenever a status changes (to stderr with --json)")
     p.add_argument("--no-radar", action="store_true", help="no ground radar even if the scenario has one")
     p.add_argument("--radar-pose", choices=("calibrated", "surveyed"), default="calibrated",
-                   help="how the mission learns the radar's pose: the appendix-A calibration flight (default) or a survey")
+                   help="how the mission learns the radar's pose: the appendix-A calibration flight (default) or a "
+                        "survey (run takes the pose itself as a FILE)")
     p.add_argument("--no-camera", action="store_true", help="no rendered camera (trees without vision run faster)")
-    p.add_argument("--camera-size", type=_size, default=(640, 480), metavar="WxH", help="rendered camera size (default 640x480)")
+    p.add_argument("--camera-size", type=_size, default=(640, 480), metavar="WxH", help="rendered camera size, px (default 640x480)")
     p.add_argument("--no-telemetry", action="store_true", help="do not give the mission the intruders' own MAVLink position")
-    p.add_argument("--trace", type=Path, metavar="FILE.npz", help="write the flight's per-tick trace (FlightTrace) here")
-    p.add_argument("--report", type=Path, metavar="DIR",
-                   help="write the report there too: report.json, report.md, the trace and the paper's figures")
+    p.add_argument("--trace", type=arg.output_file, metavar="FILE.npz", help="write the flight's per-tick trace (FlightTrace) here (default: none)")
+    p.add_argument("--report", type=arg.output_dir, metavar="DIR",
+                   help="write the report there too: report.json, report.md, the trace and the paper's figures (default: none)")
     add_recording_arguments(p)
     add_groot2_arguments(p)
 
@@ -127,19 +170,28 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
             sub.add_parser(name, help=help_, add_help=False)
 
     p = command("sitl", _sitl, "start the built-in ArduCopter-compatible simulator on loopback")
-    p.add_argument("--scenario", required=True, type=Path)
-    p.add_argument("--speedup", type=float, default=1.0, help="simulated seconds per wall second")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--tcp-port", type=int, default=5760)
-    p.add_argument("--udp-port", type=int, default=14550)
+    p.add_argument("--scenario", required=True, type=Path, metavar="FILE", help="scenario file (sitl/scenarios/README.md; required)")
+    p.add_argument("--speedup", type=arg.positive_float, default=1.0, metavar="X", help="simulated seconds per wall second (default 1)")
+    p.add_argument("--seed", type=arg.seed, default=DEFAULT_SEED, metavar="N",
+                   help=f"simulator seed, as rehearse's (default {DEFAULT_SEED})")
+    p.add_argument("--tcp-port", type=arg.listen_port, default=5760, metavar="PORT",
+                   help="TCP port to listen on, as ArduPilot SITL (default 5760; 0: any free one, printed)")
+    p.add_argument("--udp-port", type=arg.listen_port, default=14550, metavar="PORT",
+                   help="UDP port to listen on, reached with udpout: (default 14550; 0: any free one, printed)")
     _signing_arguments(p)
+    arg.add_verbose_everywhere(sub)
     return parser
+
+
+_EPILOG = """\
+exit codes: 0 done, 1 the mission failed or the vehicle could not be flown, 2 bad input, 130 interrupted.
+`chaser-bt COMMAND --help` describes each command's options."""
 
 
 def _signing_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--signing-key", type=Path, metavar="FILE",
                    help="MAVLink 2 signing key file: a line of 64 hex digits, or a passphrase (key = SHA-256, as MAVProxy's signing setup)")
-    p.add_argument("--signing-link-id", type=int, default=0, metavar="N", help="signing link id (default 0)")
+    p.add_argument("--signing-link-id", default=0, metavar="N", type=arg.non_negative_int, help="signing link id (default 0)")
 
 
 def _signing(args: argparse.Namespace):
@@ -218,7 +270,9 @@ def _fly(args: argparse.Namespace, tree, monitor) -> int:
     from chaser_bt.vehicle import LinkConfig, VehicleError, VehicleLink
 
     hook = _recording_hook(args)
-    config = LinkConfig(signing=_signing(args))
+    from chaser_bt.geo import GeoPoint
+
+    config = LinkConfig(signing=_signing(args), origin=None if args.origin is None else GeoPoint(*args.origin))
     try:
         link = VehicleLink.connect(args.connect, config)
     except ValueError as exc:  # a malformed connection string
@@ -249,13 +303,21 @@ def _fly(args: argparse.Namespace, tree, monitor) -> int:
         link.close()
     state = link.state
     print(f"{result.status.value}: {result.message or '-'} after {result.ticks} ticks; vehicle {state.mode}, {'armed' if state.armed else 'disarmed'}")
+    if "no ENU frame yet" in (result.message or ""):
+        print("chaser-bt: run: the vehicle has not sent its home yet (a vehicle already flying, or just "
+              "reconnected): wait for it, or give the mission's origin with --origin LAT,LON,ALT", file=sys.stderr)
+    if result.status is not RunStatus.SUCCESS and args.signing_key is None and "no answer" in (result.message or ""):
+        print("chaser-bt: run: the vehicle did not answer our commands; if it requires MAVLink 2 signing "
+              "(`chaser-bt sitl --signing-key FILE` does), pass the same --signing-key", file=sys.stderr)
+    if result.status is RunStatus.INTERRUPTED:  # Ctrl-C or SIGTERM: the tree was halted, the aircraft left hovering
+        return EXIT_INTERRUPTED
     return EXIT_OK if result.status is RunStatus.SUCCESS else EXIT_FAILED
 
 
 def _rehearse(args: argparse.Namespace) -> int:
     tree = _load_tree(args.tree)
     scenario = _load_scenario(args.scenario)
-    from sitl.bench.rehearsal import rehearse
+    from sitl.bench.rehearsal import RehearsalInterrupted, rehearse
     from sitl.bench.sensors import SensorOptions
 
     on_tick = _tick_printer(tree, sys.stderr if args.json else sys.stdout) if args.show_ticks else None
@@ -263,9 +325,12 @@ def _rehearse(args: argparse.Namespace) -> int:
                             camera_size=args.camera_size, telemetry=not args.no_telemetry)
     hook = _recording_hook(args)
     monitor = _groot2_monitor(args, tree)
+    interrupted = False
     try:
         report = rehearse(tree, scenario, args.seed, rate_hz=args.rate_hz, on_tick=on_tick, sensors=sensors,
                           on_start=start_hook(monitor, hook), trace=args.trace is not None or args.report is not None)
+    except RehearsalInterrupted as stop:  # Ctrl-C or SIGTERM: the partial report, then exit 130
+        report, interrupted = stop.report, True
     finally:
         if hook is not None:
             hook.close()
@@ -282,6 +347,9 @@ def _rehearse(args: argparse.Namespace) -> int:
         print(json.dumps(report.to_dict()))
     else:
         _print_report(report.to_dict())
+    if interrupted:
+        print(f"chaser-bt: rehearse: {report.message}; the report covers the flight so far", file=sys.stderr)
+        return EXIT_INTERRUPTED
     return EXIT_OK if report.outcome in ("landed", "completed", "following") else EXIT_FAILED
 
 
@@ -355,7 +423,18 @@ def _tick_printer(tree, stream):
 def _print_report(report: dict) -> None:
     width = max(len(k) for k in report)
     for key, value in report.items():
-        print(f"  {key:<{width}}  {value}")
+        print(f"  {key:<{width}}  {_plain(value)}")
+
+
+def _plain(value) -> str:
+    """A report value as people read it: ``-`` for none, lists comma-separated (not Python's reprs)."""
+    if value is None:
+        return "-"
+    if isinstance(value, (list, tuple)):
+        return ", ".join(_plain(v) for v in value) if value else "-"
+    if isinstance(value, dict):
+        return ", ".join(f"{k} {_plain(v)}" for k, v in value.items()) if value else "-"
+    return str(value)
 
 
 def _load_scenario(path: Path):
@@ -371,16 +450,26 @@ def _load_scenario(path: Path):
 
 def _sitl(args: argparse.Namespace) -> int:
     scenario = _load_scenario(args.scenario)
+    signing = _signing(args)
     from sitl.server import serve
 
     def ready(connection_strings: list[str]) -> None:
-        print(f"simulating {scenario.name} at {args.speedup:g}x; connect with:")
+        print(f"simulating {scenario.name} at {args.speedup:g}x (seed {args.seed}); connect with:")
         for url in connection_strings:
             print(f"  {url}")
+        if signing is not None:
+            print(f"MAVLink 2 signing is on: unsigned messages are refused; fly with "
+                  f"`chaser-bt run TREE --connect URL --signing-key {args.signing_key}`")
         sys.stdout.flush()
 
-    serve(scenario, seed=args.seed, speedup=args.speedup, udp_port=args.udp_port, tcp_port=args.tcp_port, ready=ready,
-          signing=_signing(args))
+    try:
+        serve(scenario, seed=args.seed, speedup=args.speedup, udp_port=args.udp_port, tcp_port=args.tcp_port,
+              ready=ready, signing=signing)
+    except OSError as exc:
+        if exc.errno not in (errno.EADDRINUSE, errno.EACCES, errno.EADDRNOTAVAIL):
+            raise
+        raise _BadInput(f"--tcp-port {args.tcp_port} / --udp-port {args.udp_port}: cannot listen on loopback "
+                        f"({exc.strerror}); is another `chaser-bt sitl` running? pick other ports") from None
     return EXIT_OK
 
 

@@ -13,6 +13,7 @@ import json
 import math
 import sys
 
+from chaser_bt.cli_args import output_file
 from chaser_bt.control.chase_geometry import ChaseInputs, recommend, trade_off_figure
 
 __all__ = ["add_command"]
@@ -20,19 +21,19 @@ __all__ = ["add_command"]
 
 def add_command(subparsers: argparse._SubParsersAction) -> None:
     d = ChaseInputs()
-    p = subparsers.add_parser("chase-geometry", help="recommend the follow position (slant range, elevation)",
-                              description=__doc__.splitlines()[0])
-    p.add_argument("--hfov-deg", type=float, default=math.degrees(d.hfov_rad), help="camera horizontal FOV (deg)")
-    p.add_argument("--vfov-deg", type=float, default=math.degrees(d.vfov_rad), help="camera vertical FOV (deg)")
-    p.add_argument("--width-px", type=int, default=d.width_px)
-    p.add_argument("--height-px", type=int, default=d.height_px)
+    help_ = "recommend the follow position (slant range, elevation) for a camera and a target; draw the trade-off"
+    p = subparsers.add_parser("chase-geometry", help=help_, description=help_)
+    p.add_argument("--hfov-deg", type=float, default=math.degrees(d.hfov_rad), help="camera horizontal FOV, deg (default %(default).4g)")
+    p.add_argument("--vfov-deg", type=float, default=math.degrees(d.vfov_rad), help="camera vertical FOV, deg (default %(default).4g)")
+    p.add_argument("--width-px", type=int, default=d.width_px, help="image width, px (default %(default)s)")
+    p.add_argument("--height-px", type=int, default=d.height_px, help="image height, px (default %(default)s)")
     p.add_argument("--target-size-m", type=float, nargs=3, metavar=("WIDTH", "DEPTH", "HEIGHT"),
-                   default=[d.target_width_m, d.target_depth_m, d.target_height_m], help="target box (m)")
-    p.add_argument("--speed-h", type=float, default=d.speed_h_mps, help="target horizontal dash speed (m/s)")
-    p.add_argument("--speed-up", type=float, default=d.speed_up_mps, help="target climb speed (m/s)")
-    p.add_argument("--speed-down", type=float, default=d.speed_down_mps, help="target descent speed (m/s)")
-    p.add_argument("--min-pixels", type=float, default=d.min_pixels, help="pixels on target the detector needs")
-    p.add_argument("--plot", metavar="PNG", help="write the trade-off figure here")
+                   default=[d.target_width_m, d.target_depth_m, d.target_height_m], help=f"target box, m (default {d.target_width_m:g} {d.target_depth_m:g} {d.target_height_m:g})")
+    p.add_argument("--speed-h", type=float, default=d.speed_h_mps, metavar="M/S", help="target horizontal dash speed, m/s (default %(default)s)")
+    p.add_argument("--speed-up", type=float, default=d.speed_up_mps, metavar="M/S", help="target climb speed, m/s (default %(default)s)")
+    p.add_argument("--speed-down", type=float, default=d.speed_down_mps, metavar="M/S", help="target descent speed, m/s (default %(default)s)")
+    p.add_argument("--min-pixels", type=float, default=d.min_pixels, metavar="PX", help="pixels on target the detector needs, px (default %(default)s)")
+    p.add_argument("--plot", type=output_file, metavar="FILE.png", help="write the trade-off figure here (default: none)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(handler=run)
 
@@ -44,7 +45,7 @@ def _inputs(args: argparse.Namespace) -> ChaseInputs:
               "--speed-up": args.speed_up > 0, "--speed-down": args.speed_down > 0, "--min-pixels": args.min_pixels > 0}
     bad = [k for k, ok in checks.items() if not ok]
     if bad:
-        raise ValueError(f"chase-geometry: {', '.join(bad)}: expected positive values (FOVs below 180 deg)")
+        raise ValueError(f"{', '.join(bad)}: expected positive values (FOVs below 180 deg)")
     w, dpt, h = args.target_size_m
     return ChaseInputs(hfov_rad=math.radians(args.hfov_deg), vfov_rad=math.radians(args.vfov_deg),
                        width_px=args.width_px, height_px=args.height_px, target_width_m=w, target_depth_m=dpt,
@@ -57,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
         inputs = _inputs(args)
         rec = recommend(inputs)
     except ValueError as e:
-        print(f"error: {e}", file=sys.stderr)
+        print(f"chaser-bt: {e}", file=sys.stderr)
         return 2
     if args.plot:
         trade_off_figure(inputs, args.plot)

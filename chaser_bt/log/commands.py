@@ -21,6 +21,7 @@ import sys
 from pathlib import Path
 from typing import Any, Mapping
 
+from chaser_bt.cli_args import listen_port, output_dir, output_file
 
 __all__ = ["add_command", "add_recording_arguments", "RecordingError", "RecordingHook", "run_replay", "run_plot"]
 
@@ -36,9 +37,10 @@ def add_command(subparsers) -> None:
     p.add_argument("log", type=Path, help="flight log (.mcap) written with --record")
     p.add_argument("tree", type=Path, help="tree to tick (the recorded one, or a changed one)")
     p.add_argument("--correlator", choices=("gated", "alg1"),
-                   help="re-run the radar with this correlator (default: as recorded)")
+                   help="re-run the radar with this correlator: gated (ours) or alg1 (the paper's Algorithm 1; default: as recorded)")
     p.add_argument("--check", action="store_true",
-                   help="exit 1 unless status changes and associations are exactly as recorded")
+                   help="exit 1 unless status changes and associations are exactly as recorded (a detector re-run on "
+                        "JPEG frames may differ: record with --record-frames png for an exact replay)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(handler=run_replay)
 
@@ -46,19 +48,21 @@ def add_command(subparsers) -> None:
                               description="Draw the overhead track, the relative geometry and the belief maps of a "
                                           "recorded flight as PNG files.")
     p.add_argument("log", type=Path, help="flight log (.mcap)")
-    p.add_argument("--out", type=Path, help="folder for the PNGs (default: LOG without .mcap, plus _plots)")
+    p.add_argument("--out", type=output_dir, metavar="DIR", help="folder for the PNGs (default: LOG without .mcap, plus _plots)")
     p.set_defaults(handler=run_plot)
 
 
 def add_recording_arguments(parser: argparse.ArgumentParser) -> None:
     """``--record FILE.mcap``, ``--record-frames``, ``--live [PORT]`` for ``run`` and ``rehearse``."""
-    parser.add_argument("--record", type=Path, metavar="FILE.mcap",
-                        help="record the flight to an MCAP file (opens in Foxglove; `chaser-bt replay`, `chaser-bt plot`)")
+    parser.add_argument("--record", type=output_file, metavar="FILE.mcap",
+                        help="record the flight to an MCAP file (opens in Foxglove; `chaser-bt replay`, `chaser-bt plot`; "
+                             "default: no recording)")
     parser.add_argument("--record-frames", choices=("jpeg", "png"), default="jpeg",
                         help="camera frames: jpeg, 5 per second (default), or png, every frame (lossless: replay "
                              "re-runs the detector exactly)")
-    parser.add_argument("--live", type=int, nargs="?", const=DEFAULT_PORT, metavar="PORT",
-                        help=f"serve the flight live to Foxglove on ws://127.0.0.1:PORT (default {DEFAULT_PORT})")
+    parser.add_argument("--live", type=listen_port, nargs="?", const=DEFAULT_PORT, metavar="PORT",
+                        help=f"serve the flight live to Foxglove on ws://127.0.0.1:PORT (PORT default {DEFAULT_PORT}, 0: any free one; "
+                             "default: no live view)")
 
 
 class RecordingError(ValueError):
@@ -145,13 +149,15 @@ def run_replay(args: argparse.Namespace) -> int:
             print(f"{args.log}: unfinished log (read up to {log.problem})")
         for c in result.status_changes:
             print(f"  {c.t:9.2f} s  {c.node}: {c.old} -> {c.new}")
-        print(f"{result.ticks} ticks, root {result.root}, ended: {result.ended}; {result.polls} MAVLink reads, "
+        # A finished root is halted when replay stops, so its last status reads INVALID: say how it ended instead.
+        ending = result.ended if result.ended.startswith("root ") else f"{result.ended} (root {result.root})"
+        print(f"{result.ticks} ticks, ended: {ending}; {result.polls} MAVLink reads, "
               f"{result.datagrams} radar datagrams, {result.frames} camera frames")
-        print(_compare_line("status changes", len(result.status_changes), same_changes))
+        print(_compare_line("status changes", len(result.status_changes), same_changes, rec_changes, result.status_changes))
         if result.associations or rec_assoc:
             ids = sorted({a["associated_id"] for a in result.associations if a["associated_id"] is not None})
             print(f"radar: {len(result.associations)} pictures, ownship track(s) {ids}")
-            print(_compare_line("associations", len(result.associations), same_assoc))
+            print(_compare_line("associations", len(result.associations), same_assoc, rec_assoc, result.associations))
     if args.check and (same_changes is not None or same_assoc is not None):
         return EXIT_FAILED
     return EXIT_OK
@@ -165,10 +171,22 @@ def _first_difference(recorded: list, replayed: list) -> int | None:
     return None if len(recorded) == len(replayed) else min(len(recorded), len(replayed))
 
 
-def _compare_line(what: str, n: int, diff: int | None) -> str:
+def _compare_line(what: str, n: int, diff: int | None, recorded: list | None = None, replayed: list | None = None) -> str:
     if diff is None:
         return f"{what}: {n}, exactly as recorded"
-    return f"{what}: {n}, differ from the recording from entry {diff}"
+    line = f"{what}: {n}, differ from the recording from entry {diff}"
+    if recorded is not None and replayed is not None:
+        line += f" (recorded {_entry(recorded, diff)}; replayed {_entry(replayed, diff)})"
+    return line
+
+
+def _entry(entries: list, i: int) -> str:
+    if i >= len(entries):
+        return "nothing"
+    e = entries[i]
+    if hasattr(e, "node"):
+        return f"{e.t:.2f} s {e.node}: {e.old} -> {e.new}"
+    return json.dumps(e, default=str)
 
 
 def run_plot(args: argparse.Namespace) -> int:

@@ -22,7 +22,7 @@ def add_command(subparsers) -> None:
     """Add ``calibrate`` to the ``chaser-bt`` sub-commands."""
     p = subparsers.add_parser("calibrate", help="fit the ground radar's pose from a recorded calibration flight",
                               description="Fit the ground radar's pose from a recorded calibration flight (docs/radar.md).")
-    p.add_argument("file", help="calibration flight, JSON lines (docs/radar.md)")
+    p.add_argument("file", metavar="FILE", help="calibration flight, JSON lines (docs/radar.md)")
     p.add_argument("--method", choices=METHODS, default="six",
                    help="six: orientation and position (default); longest: the paper's 3-parameter fit on the "
                         "longest track; best: 3-parameter fit on the best track")
@@ -34,12 +34,12 @@ def run_calibrate(args: argparse.Namespace) -> int:
     try:
         rec = load_recording(args.file)
     except RecordingError as e:
-        print(f"error: {e}", file=sys.stderr)
+        print(f"chaser-bt: {e}", file=sys.stderr)
         return 2
     try:
         res, where = calibrate_recording(rec, args.method)
     except CalibrationError as e:
-        print(f"error: {args.file}: cannot calibrate: {e}", file=sys.stderr)
+        print(f"chaser-bt: {args.file}: cannot calibrate: {e}", file=sys.stderr)
         return 1
     y, p, r = (math.degrees(a) for a in res.yaw_pitch_roll)
     out = {"method": res.method, "lat_deg": where.lat_deg, "lon_deg": where.lon_deg, "alt_m": where.alt_m,

@@ -14,6 +14,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from chaser_bt.cli_args import non_negative_float, non_negative_int, output_file, positive_float, positive_int, seed
+
 __all__ = ["add_command", "evaluate_folder"]
 
 
@@ -55,19 +57,31 @@ def evaluate_folder(data_dir: str | Path, weights: str | Path, image_size: int, 
             "iou": m.iou, "precision": m.precision, "recall": m.recall, "f1": m.f1, "fps": fps}
 
 
+def image_size(text: str) -> int:
+    """A detector input size: a positive multiple of 32 px."""
+    value = positive_int(text)
+    if value % 32:
+        raise argparse.ArgumentTypeError(f"expected a multiple of 32 px, got {value}")
+    return value
+
+
 def _train(args: argparse.Namespace) -> int:
-    from chaser_bt.vision.detector.train import TrainConfig, train_detector
+    from chaser_bt.vision.detector.train import TrainConfig, TrainingInterrupted, train_detector
 
     if not (Path(args.data) / "images").is_dir():
-        print(f"error: --data {args.data}: no images/ folder (YOLO layout expected)", file=sys.stderr)
+        print(f"chaser-bt: --data {args.data}: no images/ folder (YOLO layout expected)", file=sys.stderr)
         return 2
     try:
         out = train_detector(TrainConfig(args.data, args.out, steps=args.steps, batch=args.batch, seed=args.seed, threads=args.threads,
                                          lr=args.lr, init_weights=args.init or "", small_box_px=args.small_box_px,
                                          small_weight=args.small_weight, obj_iou=args.obj_iou), resume=not args.fresh)
     except (ValueError, FileNotFoundError) as e:
-        print(f"error: {e}", file=sys.stderr)
+        print(f"chaser-bt: {e}", file=sys.stderr)
         return 2
+    except TrainingInterrupted as e:
+        print(f"\nchaser-bt: train-detector: interrupted at step {e.step}; checkpoint {e.checkpoint}: run the same "
+              "command again to resume", file=sys.stderr)
+        return 130
     print(f"weights written to {out}")
     try:
         from chaser_bt.vision.detector.inference import export_onnx
@@ -100,7 +114,7 @@ def _train_refiner(args: argparse.Namespace) -> int:
             sets.append(make_refiner_set(images, boxes, config, args.per_label, rng))
             print(f"{folder}: {len(sets[-1][0])} crops", file=sys.stderr)
     except (ValueError, FileNotFoundError) as e:
-        print(f"error: {e}", file=sys.stderr)
+        print(f"chaser-bt: {e}", file=sys.stderr)
         return 2
     crops, given, targets = (np.concatenate(parts) for parts in zip(*sets))
     out = train_refiner(crops, given, targets, args.out, config, steps=args.steps, seed=args.seed)
@@ -112,12 +126,13 @@ def _eval(args: argparse.Namespace) -> int:
     from chaser_bt.vision.detector.inference import DEFAULT_WEIGHTS
 
     if not (Path(args.data) / "images").is_dir():
-        print(f"error: --data {args.data}: no images/ folder (YOLO layout expected)", file=sys.stderr)
+        print(f"chaser-bt: --data {args.data}: no images/ folder (YOLO layout expected)", file=sys.stderr)
         return 2
     try:
+        _check_weights(args.weights or DEFAULT_WEIGHTS)
         results = [evaluate_folder(args.data, args.weights or DEFAULT_WEIGHTS, s, args.threads, args.limit, args.backend) for s in args.sizes]
     except (ValueError, FileNotFoundError) as e:
-        print(f"error: {e}", file=sys.stderr)
+        print(f"chaser-bt: {e}", file=sys.stderr)
         return 2
     for r in results:
         print(json.dumps(r))
@@ -132,7 +147,7 @@ def _import_footage(args: argparse.Namespace) -> int:
     for pair in args.rename or []:
         old, sep, new = pair.partition("=")
         if not sep or not old or not new:
-            print(f"error: --rename {pair!r}: expected LABEL=CLASS", file=sys.stderr)
+            print(f"chaser-bt: --rename {pair!r}: expected LABEL=CLASS", file=sys.stderr)
             return 2
         rename[old] = new
     try:
@@ -140,7 +155,7 @@ def _import_footage(args: argparse.Namespace) -> int:
                                  classes=args.classes, rename=rename, video_start=args.video_start, video_step=args.video_step,
                                  min_box_px=args.min_box_px, prefix=args.prefix, preview=args.preview)
     except (ValueError, FileNotFoundError) as e:
-        print(f"error: {e}", file=sys.stderr)
+        print(f"chaser-bt: {e}", file=sys.stderr)
         return 2
     for name, why in summary.skipped:
         print(f"skipped {name}: {why}", file=sys.stderr)
@@ -148,37 +163,62 @@ def _import_footage(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_weights(path: str | Path) -> None:
+    """Raises ValueError unless ``path`` loads as detector weights (a file ``train-detector`` wrote)."""
+    import pickle
+    import zipfile
+
+    from chaser_bt.vision.detector.inference import load_model
+
+    if not Path(path).is_file():
+        raise ValueError(f"--weights {path}: no such file")
+    try:
+        load_model(path)
+    except (pickle.UnpicklingError, zipfile.BadZipFile, EOFError, KeyError, TypeError, RuntimeError, AttributeError) as exc:
+        raise ValueError(f"--weights {path}: not detector weights (expected a .pt file train-detector wrote; {type(exc).__name__})") from None
+
+
 def add_command(subparsers) -> None:
     """Add ``train-detector``, ``train-refiner`` and ``eval-detector`` to the CLI's subparsers."""
-    t = subparsers.add_parser("train-detector", help="train the vision detector on a YOLO folder (seeded, resumable)")
-    t.add_argument("--data", required=True, help="YOLO folder (python -m sitl.bench.camera_dataset writes one)")
-    t.add_argument("--out", default="detector.pt", help="weights file to write (a .ckpt beside it makes it resumable)")
-    t.add_argument("--steps", type=int, default=1500)
-    t.add_argument("--batch", type=int, default=24)
-    t.add_argument("--seed", type=int, default=0)
-    t.add_argument("--threads", type=int, default=1)
+    help_ = "train the vision detector on a YOLO folder (seeded, resumable; Ctrl-C writes a checkpoint)"
+    t = subparsers.add_parser("train-detector", help=help_, description=help_)
+    t.add_argument("--data", required=True, metavar="DIR", help="YOLO folder (python -m sitl.bench.camera_dataset writes one; required)")
+    t.add_argument("--out", default="detector.pt", type=output_file, metavar="FILE.pt",
+                   help="weights file to write; a .ckpt beside it makes it resumable (default detector.pt)")
+    t.add_argument("--steps", type=positive_int, default=1500, metavar="N", help="optimiser steps in all, counting resumed ones (default 1500)")
+    t.add_argument("--batch", type=positive_int, default=24, metavar="N", help="images per step (default 24)")
+    t.add_argument("--seed", type=seed, default=0, metavar="N", help="seed of the batches and initial weights (default 0)")
+    t.add_argument("--threads", type=positive_int, default=1, metavar="N", help="torch threads (default 1)")
     t.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
-    t.add_argument("--lr", type=float, default=2e-3, help="peak learning rate (lower when fine-tuning)")
-    t.add_argument("--init", default=None, help="fine-tune from these weights (same classes) instead of from scratch")
-    t.add_argument("--small-box-px", type=float, default=0.0, help="over-sample images with a box narrower than this (416-scale px)")
-    t.add_argument("--small-weight", type=float, default=3.0, help="how many times more often such images are drawn")
-    t.add_argument("--obj-iou", type=float, default=0.0, help="objectness target 1 - g + g * IoU of the predicted box (YOLOv5's gr)")
+    t.add_argument("--lr", default=2e-3, type=positive_float, help="peak learning rate (default 2e-3; lower when fine-tuning)")
+    t.add_argument("--init", default=None, metavar="FILE.pt",
+                   help="fine-tune from these weights (same classes) instead of from scratch (default: from scratch)")
+    t.add_argument("--small-box-px", default=0.0, type=non_negative_float, metavar="PX",
+                   help="over-sample images with a box narrower than this, px at 416 scale (default 0: no over-sampling)")
+    t.add_argument("--small-weight", type=positive_float, default=3.0, help="how many times more often such images are drawn (default 3)")
+    t.add_argument("--obj-iou", type=non_negative_float, default=0.0, metavar="G",
+                   help="objectness target 1 - G + G * IoU of the predicted box (YOLOv5's gr; default 0)")
     t.set_defaults(handler=_train)
-    r = subparsers.add_parser("train-refiner", help="train the box refiner (second stage) on YOLO folders of full-size frames")
-    r.add_argument("--data", required=True, nargs="+", help="YOLO folders (python -m sitl.bench.camera_dataset writes them)")
-    r.add_argument("--out", required=True, help="weights file; ship it beside the detector as <detector>_refiner.pt")
-    r.add_argument("--per-label", type=int, default=6, help="jittered crops per labelled target")
-    r.add_argument("--steps", type=int, default=4000)
-    r.add_argument("--seed", type=int, default=0)
-    r.add_argument("--threads", type=int, default=2)
+    help_ = "train the box refiner (second stage) on YOLO folders of full-size frames"
+    r = subparsers.add_parser("train-refiner", help=help_, description=help_)
+    r.add_argument("--data", required=True, nargs="+", metavar="DIR", help="YOLO folders (python -m sitl.bench.camera_dataset writes them; required)")
+    r.add_argument("--out", required=True, type=output_file, metavar="FILE.pt",
+                   help="weights file; ship it beside the detector as <detector>_refiner.pt (required)")
+    r.add_argument("--per-label", type=positive_int, default=6, metavar="N", help="jittered crops per labelled target (default 6)")
+    r.add_argument("--steps", type=positive_int, default=4000, metavar="N", help="optimiser steps (default 4000)")
+    r.add_argument("--seed", type=seed, default=0, metavar="N", help="seed of the crops and initial weights (default 0)")
+    r.add_argument("--threads", type=positive_int, default=2, metavar="N", help="torch threads (default 2)")
     r.set_defaults(handler=_train_refiner)
-    e = subparsers.add_parser("eval-detector", help="11-point AP@0.5, IoU, P/R/F1 at 0.25 and frames/s on a YOLO folder")
-    e.add_argument("--data", required=True)
-    e.add_argument("--weights", default=None, help="default: the shipped weights")
-    e.add_argument("--sizes", type=int, nargs="+", default=[416, 832])
-    e.add_argument("--threads", type=int, default=1)
-    e.add_argument("--limit", type=int, default=0, help="use the first N images only")
-    e.add_argument("--backend", choices=["auto", "torch", "onnx"], default="auto")
+    help_ = "11-point AP@0.5, IoU, P/R/F1 at 0.25 and frames/s of the detector on a YOLO folder"
+    e = subparsers.add_parser("eval-detector", help=help_, description=help_)
+    e.add_argument("--data", required=True, metavar="DIR", help="YOLO folder (required)")
+    e.add_argument("--weights", default=None, metavar="FILE.pt", help="detector weights (default: the shipped weights)")
+    e.add_argument("--sizes", type=image_size, nargs="+", default=[416, 832], metavar="PX",
+                   help="input sizes to evaluate at, px, multiples of 32 (default 416 832)")
+    e.add_argument("--threads", type=positive_int, default=1, metavar="N", help="torch threads (default 1)")
+    e.add_argument("--limit", type=non_negative_int, default=0, metavar="N", help="use the first N images only (default 0: all)")
+    e.add_argument("--backend", choices=["auto", "torch", "onnx"], default="auto",
+                   help="auto: ONNX when a current .onnx file is beside the weights (default), else torch")
     e.set_defaults(handler=_eval)
     f = subparsers.add_parser("import-footage", help="a CVAT export (YOLO 1.1 or COCO 1.0, zip or folder) of your footage into "
                                                      "train/ and val/ YOLO folders, split by contiguous chunks")

@@ -28,6 +28,7 @@ import logging
 import math
 import multiprocessing
 import os
+import signal
 import sys
 import time
 from collections import Counter
@@ -38,6 +39,7 @@ from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
+from chaser_bt.cli_args import output_dir, positive_int
 from chaser_bt.log.trace import FlightTrace
 
 __all__ = [
@@ -81,10 +83,11 @@ def parse_seeds(text: str) -> list[int]:
     """Seeds from ``"1-50"``, ``"1,3,7"`` or ``"1-10,20"``: ascending, each once.
 
     Raises:
-        CampaignError: on an empty item, a non-integer, a negative seed or a range whose end is
-            below its start, naming the item.
+        CampaignError: on an empty item, a non-integer, a negative seed, a range whose end is
+            below its start (naming the item), or a seed named twice.
     """
     seeds: set[int] = set()
+    repeated: set[int] = set()
     if not text.strip():
         raise CampaignError("--seeds: empty; expected e.g. 1-50, 1,3,7 or 1-10,20")
     for item in text.split(","):
@@ -99,7 +102,10 @@ def parse_seeds(text: str) -> list[int]:
             raise CampaignError(f"--seeds: {item!r}: seeds are non-negative")
         if b < a:
             raise CampaignError(f"--seeds: {item!r}: the range ends below its start")
+        repeated.update(seeds.intersection(range(a, b + 1)))
         seeds.update(range(a, b + 1))
+    if repeated:
+        raise CampaignError(f"--seeds: {text!r} names seed(s) {', '.join(map(str, sorted(repeated)))} more than once")
     return sorted(seeds)
 
 
@@ -355,7 +361,8 @@ def _execute_inline(specs: Sequence[RunSpec], runner: Callable[[RunSpec], dict])
 def _execute_processes(specs: Sequence[RunSpec], runner: Callable[[RunSpec], dict], workers: int) -> Iterator[tuple[RunSpec, dict]]:
     """Runs in ``workers`` spawned processes, yielded as each finishes; unfinished ones are cancelled on exit."""
     ctx = multiprocessing.get_context("spawn")  # no fork: torch, threads and the simulator's state stay per process
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+    # Workers ignore Ctrl-C: the driver alone decides to stop, keeps what finished and ends the workers.
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_ignore_interrupts)
     pending: dict[Future, RunSpec] = {}
     try:
         queue = iter(specs)
@@ -372,7 +379,15 @@ def _execute_processes(specs: Sequence[RunSpec], runner: Callable[[RunSpec], dic
                     pending[pool.submit(_in_worker, runner, nxt)] = nxt
                 yield spec, fut.result()
     finally:
+        if pending:  # stopped early (Ctrl-C, an error): end the runs in flight now rather than wait for them
+            for process in list((getattr(pool, "_processes", None) or {}).values()):
+                process.terminate()
         pool.shutdown(wait=not pending, cancel_futures=True)
+
+
+def _ignore_interrupts() -> None:
+    """A worker process's initialiser: SIGINT (Ctrl-C reaches the whole process group) is the driver's."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _execute_ray(specs: Sequence[RunSpec], runner: Callable[[RunSpec], dict], address: str) -> Iterator[tuple[RunSpec, dict]]:
@@ -466,7 +481,8 @@ def run_campaign(
     if config.report_only:
         specs = [s for s in specs if s.key in stored]
         if not specs:
-            raise CampaignError(f"--report-only: no stored runs of this tree and these scenarios and seeds in {out}")
+            hint = "" if config.quick else "; if they were flown with --quick, add --quick"
+            raise CampaignError(f"--report-only: no stored runs of this tree and these scenarios and seeds in {out}{hint}")
     todo = [s for s in specs if s.key not in stored]
     log.info("campaign %s: %d runs, %d stored, %d to fly", config.tree, len(specs), len(stored), len(todo))
     done = len(stored)
@@ -682,16 +698,18 @@ def add_command(subparsers) -> None:
     """``chaser-bt campaign``: see the module docstring."""
     p = subparsers.add_parser("campaign", help="rehearse a tree over many scenarios and seeds in parallel; write a report",
                               description=__doc__.splitlines()[0])
-    p.add_argument("tree", type=Path)
-    p.add_argument("--scenarios", required=True, type=Path, metavar="DIR_OR_FILE", help="a scenario file or a folder of them")
-    p.add_argument("--seeds", default="1-50", help="e.g. 1-50, 1,3,7 or 1-10,20 (default 1-50)")
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="worker processes (default: one per core)")
-    p.add_argument("--out", required=True, type=Path, metavar="DIR", help="results folder; re-running into it resumes")
-    p.add_argument("--ray", metavar="ADDRESS", help="run on a Ray cluster (ADDRESS as ray.init takes it; 'local' starts one here)")
+    p.add_argument("tree", type=Path, metavar="TREE", help="mission tree file: YAML (docs/trees.md) or BT.CPP v4 XML")
+    p.add_argument("--scenarios", required=True, type=Path, metavar="DIR_OR_FILE", help="a scenario file or a folder of them (required)")
+    p.add_argument("--seeds", default="1-50", metavar="LIST", help="e.g. 1-50, 1,3,7 or 1-10,20; each seed once (default 1-50)")
+    p.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1, metavar="N",
+                   help="worker processes (default: one per core)")
+    p.add_argument("--out", required=True, type=output_dir, metavar="DIR",
+                   help="results folder; re-running into it resumes (required)")
+    p.add_argument("--ray", metavar="ADDRESS", help="run on a Ray cluster (ADDRESS as ray.init takes it; 'local' starts one here; default: worker processes)")
     p.add_argument("--no-camera", action="store_true", help="rehearse without the rendered camera (faster)")
-    p.add_argument("--quick", action="store_true", help=f"cap each run at {QUICK_TIME_LIMIT_S:g} s of simulated time")
+    p.add_argument("--quick", action="store_true", help=f"cap each run at {QUICK_TIME_LIMIT_S:g} s of simulated time (default: the scenario's time limit)")
     p.add_argument("--fresh", action="store_true", help="fly every run again, ignoring stored results")
-    p.add_argument("--report-only", action="store_true", help="fly nothing: write the report of the runs stored so far")
+    p.add_argument("--report-only", action="store_true", help="fly nothing: write the report of the runs stored so far (give --quick/--no-camera as they were flown)")
     p.add_argument("--min-followed-s", type=float, default=SuccessRule.min_followed_s,
                    help="success needs the target in the FOV this long after acquisition (default %(default)s)")
     p.add_argument("--min-success", type=float, default=0.0, metavar="FRAC",
@@ -717,11 +735,13 @@ def _campaign_command(args: argparse.Namespace) -> int:
         finally:
             progress.close()
     except CampaignError as exc:
-        print(f"chaser-bt campaign: {exc}", file=sys.stderr)
+        print(f"chaser-bt: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"\nchaser-bt campaign: stopped; finished runs are in {args.out}/runs; run the same command again to resume",
-              file=sys.stderr)
+        runs = args.out / "runs"
+        kept = sum(1 for _ in runs.rglob("seed_*.json")) if runs.is_dir() else 0
+        print(f"\nchaser-bt: campaign stopped; {kept} finished run(s) kept in {runs if kept else args.out}: "
+              "run the same command again to resume", file=sys.stderr)
         return 130
     agg = result.aggregates
     print(f"{agg['runs']} runs ({result.executed} flown now): success {agg['success']}/{agg['runs']}")

@@ -205,3 +205,30 @@ def to_recording(flight: RadarFlight, guess: tuple[GeoPoint, tuple[float, float,
 
     lla = np.array([[g.lat_deg, g.lon_deg, g.alt_m] for g in (flight.frame.to_geodetic(p) for p in flight.gps_enu)])
     return CalibrationRecording(guess[0], guess[1], tuple(s for s, _ in flight.scans), flight.gps_t.copy(), lla)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m sitl.bench.radar_trials FILE.jsonl [--seed N]``: write the simulated calibration flight.
+
+    The file is what ``chaser-bt calibrate`` reads (docs/radar.md): the radar's scans, the drone's
+    GPS and the handheld guess of the radar's pose, all drawn from the seed.
+    """
+    import argparse
+
+    from chaser_bt.cli_args import ChaserParser, output_file, seed
+    from chaser_bt.radar.recording import write_recording
+
+    parser = ChaserParser(prog="python -m sitl.bench.radar_trials",
+                          description="write a simulated radar calibration flight (appendix A) for `chaser-bt calibrate`")
+    parser.add_argument("out", type=output_file, metavar="FILE.jsonl", help="calibration recording to write")
+    parser.add_argument("--seed", type=seed, default=1, metavar="N", help="seed of the flight, the noise and the guess (default 1)")
+    parser.add_argument("--duration-s", type=float, default=216.0, metavar="S", help="flight length, s (default 216)")
+    args: argparse.Namespace = parser.parse_args(argv)
+    flight = calibration_test_flight(args.seed, args.duration_s)
+    write_recording(args.out, to_recording(flight, handheld_guess(flight, args.seed)))
+    print(f"calibration flight written to {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -30,20 +30,20 @@ from chaser_bt.mission.runner import MissionRunner, StatusChange
 from chaser_bt.tree import MissionTree, load_tree, reset_blackboard
 from chaser_bt.vehicle import LinkConfig, VehicleError
 from sitl.bench.in_process import InProcessVehicle
-from sitl.bench.sar_scoring import SarObserver
+from sitl.bench.sar_scoring import SarObserver, people_enu
 from sitl.bench.scoring import RehearsalObserver
 from sitl.bench.sensors import SensorOptions, build_sensors
 from sitl.simulator import Simulator
 from sitl.world.scenario import Scenario, load_scenario
 
-__all__ = ["RehearsalReport", "rehearse"]
+__all__ = ["RehearsalInterrupted", "RehearsalReport", "rehearse"]
 
 log = logging.getLogger(__name__)
 
 
 @dataclass
 class RehearsalReport:
-    """The rehearsal's JSON report (keys of DESIGN §7 that apply to this mission, and more).
+    """The rehearsal's JSON report (keys of docs/design.md §7 that apply to this mission, and more).
 
     The scores (``t_airborne_s`` ... ``wrong_assoc_frac``) are defined in :mod:`sitl.bench.scoring`; each is
     None where it does not apply. ``trace`` (with ``rehearse(trace=True)``) is not part of
@@ -115,6 +115,17 @@ class _Scorer:
         return None if self.landed_at is None else float(np.hypot(*self.landed_at[:2]))
 
 
+class RehearsalInterrupted(KeyboardInterrupt):
+    """Ctrl-C (or SIGTERM) during a rehearsal: the tree was halted; ``report`` scores the flight so far.
+
+    A KeyboardInterrupt, so a caller that does not look for the report (a campaign) still stops.
+    """
+
+    def __init__(self, report: RehearsalReport) -> None:
+        super().__init__(report.message)
+        self.report = report
+
+
 def rehearse(
     tree: MissionTree | str | Path,
     scenario: Scenario | str | Path,
@@ -135,6 +146,9 @@ def rehearse(
     ``sensors`` says which sensors the mission gets (default :class:`SensorOptions`: every one the
     scenario provides). ``on_start(runner, vehicle, resources)`` runs after the tree's setup, before
     the first tick (a recorder's hook). ``trace`` fills ``report.trace`` (:class:`FlightTrace`).
+
+    Raises:
+        RehearsalInterrupted: on Ctrl-C, carrying the report of the flight so far (outcome ``interrupted``).
     """
     reset_blackboard()
     if not isinstance(tree, MissionTree):
@@ -158,6 +172,7 @@ def rehearse(
 
     outcome, message = "timeout", f"time limit of {scenario.time_limit_s:.0f} s reached"
     wall_start = time.perf_counter()
+    interrupted = False
     try:
         runner.setup()
         if on_start is not None:
@@ -181,6 +196,10 @@ def rehearse(
             if observer.following():
                 outcome = "following"
                 message = f"following at the time limit of {scenario.time_limit_s:.0f} s: {runner.tip_message()}"
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: halt the tree, and report what was flown so far
+        runner.stop("interrupted by the operator")
+        interrupted = True
+        outcome, message = "interrupted", f"interrupted by the operator at {sim.time_s:.1f} s of simulated time"
     except VehicleError as exc:
         # The mission lost the vehicle (e.g. a scripted link loss): score what the autopilot's own
         # failsafes make of it.
@@ -220,7 +239,15 @@ def rehearse(
         radar_yaw_err_deg=pose_err[1],
         sensors_wall_s=round(sensors_wall, 3),
     )
-    report.trace = observer.trace({"tree": tree.name, "scenario": scenario.name, "seed": seed, "outcome": outcome})
+    meta: dict = {"tree": tree.name, "scenario": scenario.name, "seed": seed, "outcome": outcome}
+    people = people_enu(sim.scenario, sim.time_s)
+    if people:  # for the overhead figure: where the people were, and the find
+        meta["people_enu"] = [[round(float(v), 2) for v in p] for p in people]
+        if sar.find is not None:
+            meta["find_enu"] = [round(float(v), 2) for v in sar.find.position_enu]
+    report.trace = observer.trace(meta)
+    if interrupted:
+        raise RehearsalInterrupted(report)
     return report
 
 

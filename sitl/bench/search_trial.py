@@ -24,6 +24,7 @@ import argparse
 import json
 import logging
 import math
+import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,6 +33,7 @@ import numpy as np
 import py_trees
 import yaml
 
+from chaser_bt.cli_args import seed as seed_argument
 from chaser_bt.mission.runner import MissionRunner
 from chaser_bt.search import GridSpec
 from chaser_bt.tree import load_tree_text, reset_blackboard
@@ -274,8 +276,8 @@ def summary(trial: SearchTrial) -> dict:
 def run_search_trial(args: argparse.Namespace) -> int:
     """``chaser-bt search-trial``: one search-only run; 0 when the search ran its course, 1 if not, 2 on bad input."""
     if args.horizon < 1 or not 0.0 < args.gamma <= 1.0 or not args.search_s > 0:
-        print(f"search-trial: need --horizon >= 1, 0 < --gamma <= 1 and --search-s > 0 (got {args.horizon}, "
-              f"{args.gamma}, {args.search_s})")
+        print(f"chaser-bt: search-trial needs --horizon >= 1, 0 < --gamma <= 1 and --search-s > 0 (got {args.horizon}, "
+              f"{args.gamma}, {args.search_s})", file=sys.stderr)
         return 2
     trial = run_trial(SearchConfig(args.planner, args.horizon, args.gamma), args.seed, search_s=args.search_s)
     out = summary(trial)
@@ -283,7 +285,7 @@ def run_search_trial(args: argparse.Namespace) -> int:
         print(json.dumps(out, ensure_ascii=False))
     else:
         for key, value in out.items():
-            print(f"{key:>16}: {value}")
+            print(f"{key:>16}: {'-' if value is None else value}")
     return 0 if trial.outcome == "searched" else 1
 
 
@@ -293,10 +295,10 @@ def add_command(subparsers) -> None:
                               description="Fly sitl/scenarios/search_only.yaml in the simulator: the radar goes silent "
                                           "within 200 m of the target, the camera detects nothing, and the search runs "
                                           "on; print its belief gain and detection probability.")
-    p.add_argument("--planner", choices=("rhc", "max"), default="rhc", help="RHC (Algorithm 2) or max-belief")
-    p.add_argument("--horizon", type=int, default=5, help="RHC moves per path (h)")
-    p.add_argument("--gamma", type=float, default=0.9, help="RHC discount")
-    p.add_argument("--seed", type=int, default=0, help="simulator seed (also draws the target's path)")
-    p.add_argument("--search-s", type=float, default=120.0, help="seconds of search before the trial stops")
+    p.add_argument("--planner", choices=("rhc", "max"), default="rhc", help="RHC (Algorithm 2; default) or max-belief")
+    p.add_argument("--horizon", type=int, default=5, metavar="H", help="RHC moves per path, h (default 5)")
+    p.add_argument("--gamma", type=float, default=0.9, help="RHC discount, in (0, 1] (default 0.9)")
+    p.add_argument("--seed", type=seed_argument, default=0, metavar="N", help="simulator seed (also draws the target's path; default 0)")
+    p.add_argument("--search-s", type=float, default=120.0, metavar="S", help="seconds of search before the trial stops (default 120)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(handler=run_search_trial)

@@ -10,6 +10,7 @@ rehearsal's scenario fails before anything flies.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -153,7 +154,9 @@ class _Parser:
         for key in d:
             if key not in allowed:
                 at = f"{path}.{key}" if path else str(key)
-                raise self.fail(at, "one of the keys " + ", ".join(allowed) + " (unknown key)")
+                close = difflib.get_close_matches(str(key), allowed, n=1)
+                hint = f"; did you mean {close[0]}?" if close else ""
+                raise self.fail(at, "one of the keys " + ", ".join(allowed) + f" (unknown key{hint})")
         return d
 
     def number(self, d: Mapping[str, Any], key: str, path: str, default: float | None,
@@ -171,34 +174,50 @@ class _Parser:
         return float(v)
 
     def scenario(self, d: Any) -> Scenario:
-        top = self.mapping(d, "", ("name", "home", "wind", "airframe", "params", "boot",
-                                   "faults", "time_limit_s", "start_unix_s", "radar", "targets",
-                                   "intruders", "pilot", "ground_station", "camera_world"))
+        """The whole scenario; every section is checked, and all their errors are raised together (one a line)."""
         if d is None:
             raise self.fail("", "a scenario mapping (the document is empty)")
+        if not isinstance(d, Mapping):
+            raise self.fail("", "a mapping", d)
+        allowed = ("name", "home", "wind", "airframe", "params", "boot", "faults", "time_limit_s", "start_unix_s",
+                   "radar", "targets", "intruders", "pilot", "ground_station", "camera_world")
+        problems: list[str] = []
+
+        def checked(read, *args, default=None):
+            try:
+                return read(*args)
+            except ScenarioError as e:
+                problems.append(str(e))
+                return default
+
+        for key in d:
+            checked(self.mapping, {key: None}, "", allowed)
+        top = {k: v for k, v in d.items() if k in allowed}
         name = top.get("name", "unnamed")
         if not isinstance(name, str) or not name:
-            raise self.fail("name", "a non-empty string", name)
-        home, heading = self.home(top.get("home"))
-        return Scenario(
-            name=name,
-            home=home,
-            home_heading_deg=heading,
-            wind=self.wind(top.get("wind")),
-            airframe=self.airframe(top.get("airframe")),
-            params=self.params(top.get("params")),
-            boot=self.boot(top.get("boot")),
-            faults=self.faults(top.get("faults")),
-            time_limit_s=self.number(top, "time_limit_s", "", 600.0, minimum=0.0),
-            start_unix_s=self.number(top, "start_unix_s", "", DEFAULT_START_UNIX_S, minimum=0.0),
-            radar=self.radar(top.get("radar")),
-            targets=(targets := self.targets(top.get("targets"))),
-            pilot=self.pilot(top.get("pilot")),
-            ground_station=self.ground_station(top.get("ground_station")),
-            camera_world=self.camera_world(top.get("camera_world")),
-            intruders=self.intruders(top.get("intruders"), {t.name for t in targets},
-                                     int(self.params(top.get("params")).get("SYSID_THISMAV", 1))),
+            problems.append(str(self.fail("name", "a non-empty string", name)))
+        home, heading = checked(self.home, top.get("home"), default=(None, 0.0))
+        params = checked(self.params, top.get("params"), default={})
+        targets = checked(self.targets, top.get("targets"), default=[])
+        fields = dict(
+            wind=checked(self.wind, top.get("wind")),
+            airframe=checked(self.airframe, top.get("airframe")),
+            params=params,
+            boot=checked(self.boot, top.get("boot")),
+            faults=checked(self.faults, top.get("faults")),
+            time_limit_s=checked(self.number, top, "time_limit_s", "", 600.0, 0.0),
+            start_unix_s=checked(self.number, top, "start_unix_s", "", DEFAULT_START_UNIX_S, 0.0),
+            radar=checked(self.radar, top.get("radar")),
+            targets=targets,
+            pilot=checked(self.pilot, top.get("pilot")),
+            ground_station=checked(self.ground_station, top.get("ground_station")),
+            camera_world=checked(self.camera_world, top.get("camera_world"), default=WorldSpec()),
+            intruders=checked(self.intruders, top.get("intruders"), {t.name for t in targets},
+                              int(params.get("SYSID_THISMAV", 1))),
         )
+        if problems:
+            raise ScenarioError("\n".join(problems))
+        return Scenario(name=name, home=home, home_heading_deg=heading, **fields)
 
     def camera_world(self, d: Any) -> WorldSpec:
         if d is None:

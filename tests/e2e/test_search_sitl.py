@@ -79,7 +79,7 @@ def test_the_search_trial_command_prints_a_summary_and_refuses_bad_input(capsys)
     add_command(parser.add_subparsers())
     args = parser.parse_args(["search-trial", "--horizon", "0"])
     assert args.handler(args) == 2
-    assert "--horizon >= 1" in capsys.readouterr().out
+    assert "--horizon >= 1" in capsys.readouterr().err  # an error: on stderr
     args = parser.parse_args(["search-trial", "--planner", "max", "--search-s", "5", "--seed", "1", "--json"])
     assert args.handler(args) == 0
     out = json.loads(capsys.readouterr().out)

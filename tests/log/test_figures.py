@@ -108,7 +108,9 @@ def test_belief_snapshots_show_the_mass_with_x_along_columns():
     images = [im for ax in fig.axes for im in ax.get_images()]
     # Three snapshots evenly chosen: indices 0, 4 (3.5 rounds to even), 7.
     assert [im.get_gid() for im in images] == ["belief/0", "belief/4", "belief/7"]
-    np.testing.assert_allclose(images[2].get_array(), (mass * 8).T)
+    np.testing.assert_allclose(images[2].get_array(), mass.T / mass.sum())  # normalised: one scale for logs and reports
+    assert fig.axes[0].get_title() == "t = 0.0 s"  # mass 1.0
+    assert [ax.get_title() for ax in fig.axes if ax.get_images()][2] == "t = 7.0 s, belief mass 8"
     assert images[0].get_extent() == [-5.0, 25.0, -5.0, 15.0]
 
 
@@ -128,3 +130,65 @@ def test_save_figure_writes_a_png(tmp_path):
     path = tmp_path / "o.png"
     save_figure(plot_overhead([_square_trace()]), path)
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def _axes_are_labelled(fig) -> None:
+    for ax in fig.axes:
+        if not ax.axison or ax.get_label() == "<colorbar>":
+            continue
+        assert ax.get_ylabel(), f"{ax.get_title()}: no y label"
+    bottoms = [ax for ax in fig.axes if ax.axison and ax.get_label() != "<colorbar>" and ax.get_xlabel()]
+    assert bottoms, "no x label"
+
+
+def test_overhead_renders_with_labelled_axes_and_one_label_per_place(tmp_path):
+    tr = _square_trace()
+    tr.events.extend([TraceEvent(0.0, "armed"), TraceEvent(0.0, "takeoff")])  # at home, where "airborne" is too
+    fig = plot_overhead([tr])
+    _axes_are_labelled(fig)
+    labels = [t.get_text() for t in fig.axes[0].texts]
+    assert labels == ["airborne, armed, takeoff", "acquired"]
+    save_figure(fig, tmp_path / "o.png")
+
+
+def test_overhead_legend_names_only_the_phases_drawn():
+    tr = _square_trace()
+    tr.phase[-1] = "land"  # one sample at the end: nothing to draw
+    legend = [t.get_text() for t in plot_overhead([tr]).axes[0].get_legend().get_texts()]
+    assert "land" not in legend and "cue" in legend and "events" in legend
+
+
+def test_relative_geometry_renders_labelled_and_names_the_target_source(tmp_path):
+    tr = _square_trace()
+    tr.target_source = "telemetry"
+    fig = plot_relative_geometry([tr])
+    _axes_are_labelled(fig)
+    legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert "from the intruder's telemetry" in legend and "true" not in legend
+    save_figure(fig, tmp_path / "g.png")
+
+
+def test_belief_snapshots_render_labelled_with_a_colour_bar_label(tmp_path):
+    x, y = np.array([0.0, 10.0]), np.array([0.0, 10.0])
+    tr = FlightTrace(t=np.arange(2.0), ownship_enu=np.zeros((2, 3)), ownship_yaw_rad=np.zeros(2),
+                     target_enu=np.full((2, 3), np.nan), in_fov=np.full(2, np.nan), detected=np.full(2, np.nan),
+                     beliefs=[BeliefSnapshot(0.0, x, y, np.full((2, 2), 0.25))])
+    fig = plot_belief_snapshots(tr)
+    _axes_are_labelled(fig)
+    assert any(ax.get_ylabel() == "share of the belief per cell" for ax in fig.axes if ax.get_label() == "<colorbar>")
+    save_figure(fig, tmp_path / "b.png")
+
+
+def test_cdfs_render_with_axis_labels_in_words_and_units(tmp_path):
+    fig = plot_metric_cdfs([{"t_acquire_s": 3.0}, {"t_acquire_s": 1.0}], keys=("t_acquire_s",))
+    _axes_are_labelled(fig)
+    assert fig.axes[0].get_xlabel() == "take-off altitude to first acquisition (s)"
+    save_figure(fig, tmp_path / "c.png")
+
+
+def test_overhead_of_a_search_and_rescue_trace_draws_the_person_and_the_find():
+    tr = _square_trace()
+    tr.meta.update(people_enu=[[30.0, 40.0, 0.0]], find_enu=[30.5, 39.0, 0.0])
+    lines = _lines(plot_overhead([tr]), "")
+    assert list(lines["person/0"].get_xydata()[0]) == [30.0, 40.0]
+    assert list(lines["find/0"].get_xydata()[0]) == [30.5, 39.0]

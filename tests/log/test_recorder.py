@@ -184,8 +184,10 @@ def test_record_and_live_flags_attach_a_recorder_through_the_hook(tmp_path):
     assert hook.live is not None and hook.live.port > 0  # started at once: a taken port stops the command early
     with pytest.raises(RecordingError, match=f"--live {hook.live.port}: .*in use"):
         RecordingHook.from_args(parser.parse_args(["--live", str(hook.live.port)]))
-    with pytest.raises(RecordingError, match="no such folder"):
-        RecordingHook.from_args(parser.parse_args(["--record", str(tmp_path / "nowhere" / "f.mcap")]))
+    with pytest.raises(SystemExit):  # --record's folder is checked as the command line is read
+        parser.parse_args(["--record", str(tmp_path / "nowhere" / "f.mcap")])
+    with pytest.raises(RecordingError, match="no such folder"):  # ... and again by the hook, for callers without it
+        RecordingHook(tmp_path / "nowhere" / "f.mcap", None)
     _, ground = byte_pipe()
     clock = ManualClock(1.0)
     link = VehicleLink.over_pipe(ground, monotonic=clock.now)

@@ -145,3 +145,43 @@ def test_fine_tuning_refuses_weights_for_other_classes(tmp_path):
     with pytest.raises(ValueError, match="classes"):
         train_detector(TrainConfig(str(data), str(tmp_path / "w.pt"), steps=1, init_weights=str(DEFAULT_WEIGHTS)), progress=None)
     assert not (tmp_path / "w.pt").exists()
+
+
+class _CtrlCAtStep:
+    """A progress stream that raises KeyboardInterrupt (as Ctrl-C would) when training reports step ``n``."""
+
+    def __init__(self, n: int) -> None:
+        self.n, self.text = n, ""
+
+    def write(self, text: str) -> None:
+        self.text += text
+        if f"] {self.n}/" in text:
+            raise KeyboardInterrupt
+
+    def flush(self) -> None:
+        pass
+
+
+def test_ctrl_c_during_training_writes_a_checkpoint_that_resumes(tmp_path):
+    import cv2
+    import torch
+
+    from chaser_bt.vision.detector.train import TrainConfig, TrainingInterrupted, train_detector
+
+    data = tmp_path / "p"
+    (data / "images").mkdir(parents=True)
+    (data / "labels").mkdir()
+    (data / "classes.txt").write_text("person\n")
+    cv2.imwrite(str(data / "images" / "0.jpg"), np.zeros((48, 64, 3), np.uint8))
+    (data / "labels" / "0.txt").write_text("0 0.5 0.5 0.2 0.4\n")
+    cfg = TrainConfig(str(data), str(tmp_path / "w.pt"), steps=30, batch=1, image_size=64)
+    with pytest.raises(TrainingInterrupted) as stop:
+        train_detector(cfg, progress=_CtrlCAtStep(10))
+    assert stop.value.step == 10
+    assert torch.load(tmp_path / "w.ckpt", weights_only=False)["step"] == 10  # before the first regular checkpoint (50)
+    progress = _CtrlCAtStep(-1)
+    train_detector(cfg, progress=progress)
+    assert "resuming from" in progress.text and "at step 10 of 30" in progress.text
+    short = _CtrlCAtStep(-1)
+    train_detector(TrainConfig(str(data), str(tmp_path / "w.pt"), steps=20, batch=1, image_size=64), progress=short)
+    assert "nothing to train" in short.text

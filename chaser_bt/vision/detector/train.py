@@ -28,7 +28,7 @@ from chaser_bt.vision.detector.augment import flip_horizontal, hsv_jitter, mosai
 from chaser_bt.vision.detector.loss import detection_loss
 from chaser_bt.vision.detector.model import DetectorConfig, TinyYolo
 
-__all__ = ["TrainConfig", "load_yolo_folder", "train_detector"]
+__all__ = ["TrainConfig", "TrainingInterrupted", "load_yolo_folder", "train_detector"]
 
 log = logging.getLogger(__name__)
 
@@ -108,6 +108,14 @@ def _batch(images, boxes, cfg: TrainConfig, rng: np.random.Generator, p: np.ndar
     return x, ts
 
 
+class TrainingInterrupted(KeyboardInterrupt):
+    """Ctrl-C during training; the checkpoint at ``step`` (if any were trained) is at ``checkpoint``."""
+
+    def __init__(self, checkpoint: Path, step: int) -> None:
+        super().__init__(f"interrupted at step {step}")
+        self.checkpoint, self.step = checkpoint, step
+
+
 def train_detector(cfg: TrainConfig, resume: bool = True, progress=sys.stderr) -> Path:
     """Train and save ``{"config", "state_dict", "step"}`` to ``cfg.out_path``; resumes from ``<out>.ckpt``."""
     torch.set_num_threads(cfg.threads)
@@ -138,39 +146,54 @@ def train_detector(cfg: TrainConfig, resume: bool = True, progress=sys.stderr) -
         torch.set_rng_state(state["torch_rng"])
         step = int(state["step"])
         log.info("resumed from %s at step %d", ckpt, step)
+        if progress is not None:
+            progress.write(f"resuming from {ckpt} at step {step} of {cfg.steps} (--fresh starts again)\n")
+            if step >= cfg.steps:
+                progress.write(f"the checkpoint is already at step {step} >= {cfg.steps} steps: nothing to train "
+                               "(ask for more --steps, or --fresh)\n")
     warm = min(100, cfg.steps // 10)
     t0 = time.monotonic()
     first = step
     model.train()
-    while step < cfg.steps:
-        lr = cfg.lr * (step + 1) / warm if step < warm else cfg.lr * 0.5 * (1 + math.cos(math.pi * (step - warm) / max(cfg.steps - warm, 1)))
-        for g in opt.param_groups:
-            g["lr"] = lr
-        x, ts = _batch(images, boxes, cfg, rng, p_small)
-        loss, parts = detection_loss(model(x), ts, det_cfg.stride, cfg.obj_iou)
-        opt.zero_grad()
-        loss.backward()
-        torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
-        opt.step()
-        d = cfg.ema_decay * (1 - math.exp(-(step + 1) / 200))
-        with torch.no_grad():
-            for pe, pm in zip(ema.state_dict().values(), model.state_dict().values()):
-                if pe.dtype.is_floating_point:
-                    pe.mul_(d).add_(pm.detach(), alpha=1 - d)
-                else:
-                    pe.copy_(pm)
-        step += 1
-        if progress is not None and (step % 10 == 0 or step == cfg.steps):
-            rate = (time.monotonic() - t0) / max(step - first, 1)
-            bar = "#" * int(30 * step / cfg.steps)
-            progress.write(f"\r[{bar:<30}] {step}/{cfg.steps} loss {float(loss.detach()):.3f} (obj {parts['obj']:.3f} box {parts['box']:.3f} "
-                           f"cls {parts['cls']:.3f}) lr {lr:.1e} {rate:.2f} s/step eta {rate * (cfg.steps - step) / 60:.1f} min\n")
-            progress.flush()
-        if step % cfg.checkpoint_every == 0 or step == cfg.steps:
-            out.parent.mkdir(parents=True, exist_ok=True)
-            torch.save({"model": model.state_dict(), "ema": ema.state_dict(), "opt": opt.state_dict(), "rng": rng.bit_generator.state,
-                        "torch_rng": torch.get_rng_state(), "step": step}, ckpt)
-            save_weights(ema, out, step, cfg.obj_iou)
+
+    def checkpoint() -> None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        torch.save({"model": model.state_dict(), "ema": ema.state_dict(), "opt": opt.state_dict(), "rng": rng.bit_generator.state,
+                    "torch_rng": torch.get_rng_state(), "step": step}, ckpt)
+        save_weights(ema, out, step, cfg.obj_iou)
+
+    try:
+        while step < cfg.steps:
+            lr = cfg.lr * (step + 1) / warm if step < warm else cfg.lr * 0.5 * (1 + math.cos(math.pi * (step - warm) / max(cfg.steps - warm, 1)))
+            for g in opt.param_groups:
+                g["lr"] = lr
+            x, ts = _batch(images, boxes, cfg, rng, p_small)
+            loss, parts = detection_loss(model(x), ts, det_cfg.stride, cfg.obj_iou)
+            opt.zero_grad()
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
+            opt.step()
+            d = cfg.ema_decay * (1 - math.exp(-(step + 1) / 200))
+            with torch.no_grad():
+                for pe, pm in zip(ema.state_dict().values(), model.state_dict().values()):
+                    if pe.dtype.is_floating_point:
+                        pe.mul_(d).add_(pm.detach(), alpha=1 - d)
+                    else:
+                        pe.copy_(pm)
+            step += 1
+            if progress is not None and (step % 10 == 0 or step == cfg.steps):
+                rate = (time.monotonic() - t0) / max(step - first, 1)
+                bar = "#" * int(30 * step / cfg.steps)
+                progress.write(f"\r[{bar:<30}] {step}/{cfg.steps} loss {float(loss.detach()):.3f} (obj {parts['obj']:.3f} box {parts['box']:.3f} "
+                               f"cls {parts['cls']:.3f}) lr {lr:.1e} {rate:.2f} s/step eta {rate * (cfg.steps - step) / 60:.1f} min\n")
+                progress.flush()
+            if step % cfg.checkpoint_every == 0 or step == cfg.steps:
+                checkpoint()
+    except KeyboardInterrupt:  # Ctrl-C: keep what was trained; the next run resumes from here
+        if step > first:
+            checkpoint()
+            log.warning("interrupted at step %d: checkpoint %s written (run again to resume)", step, ckpt)
+        raise TrainingInterrupted(ckpt, step) from None
     return out
 
 

@@ -43,22 +43,32 @@ def test_seed_syntax_examples():
     assert parse_seeds("1-5") == [1, 2, 3, 4, 5]
     assert parse_seeds("1,3,7") == [1, 3, 7]
     assert parse_seeds("1-3,20") == [1, 2, 3, 20]
-    assert parse_seeds(" 7 , 2-3, 3 ") == [2, 3, 7]
+    assert parse_seeds(" 7 , 2-3 ") == [2, 3, 7]
     assert parse_seeds("0") == [0]
 
 
-@pytest.mark.parametrize("text", ["", "a", "1,,2", "5-3", "1-", "-1", "1-2-3", "1.5"])
+@pytest.mark.parametrize("text", ["", "a", "1,,2", "5-3", "1-", "-1", "1-2-3", "1.5", "1,1", "2-3,3"])
 def test_bad_seeds_are_refused_naming_the_item(text):
     with pytest.raises(CampaignError, match="--seeds"):
         parse_seeds(text)
 
 
-@given(st.lists(st.tuples(st.integers(0, 500), st.integers(0, 20)), min_size=1, max_size=8))
+@given(st.lists(st.tuples(st.integers(1, 50), st.integers(0, 20)), min_size=1, max_size=8))
 def test_seed_ranges_round_trip(items):
-    # Each item is a single seed (width 0) or a range a-(a+width); the result is the union, sorted.
-    text = ",".join(f"{a}" if w == 0 else f"{a}-{a + w}" for a, w in items)
-    expected = sorted({s for a, w in items for s in range(a, a + w + 1)})
-    assert parse_seeds(text) == expected
+    # Each item is a single seed (width 0) or a range a-(a+width), apart from the one before by a gap;
+    # the result is the union, sorted, whatever the order of the items.
+    ranges, end = [], -1
+    for gap, w in items:
+        ranges.append((end + gap, end + gap + w))
+        end += gap + w
+    text = ",".join(f"{a}" if a == b else f"{a}-{b}" for a, b in reversed(ranges))
+    assert parse_seeds(text) == [s for a, b in ranges for s in range(a, b + 1)]
+
+
+@given(st.integers(0, 500), st.integers(0, 20), st.integers(0, 20))
+def test_a_seed_named_twice_is_refused(a, w, k):
+    with pytest.raises(CampaignError, match="more than once"):
+        parse_seeds(f"{a}-{a + w},{a + min(k, w)}")
 
 
 # -- success, follow time, aggregates -------------------------------------------------------------
@@ -286,7 +296,10 @@ def test_stopped_campaign_resumes_without_redoing_finished_runs(tmp_path, inputs
 def _cli(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="chaser-bt")
     cm.add_command(parser.add_subparsers(dest="command"))
-    args = parser.parse_args(["campaign", *argv])
+    try:
+        args = parser.parse_args(["campaign", *argv])
+    except SystemExit as exc:  # argparse's own checks (types, choices)
+        return exc.code
     return args.handler(args)
 
 

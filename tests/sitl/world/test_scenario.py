@@ -80,3 +80,17 @@ def test_a_broken_file_names_the_file(tmp_path):
     empty.write_text("")
     with pytest.raises(ScenarioError, match="empty.yaml"):
         load_scenario(empty)
+
+
+def test_a_misspelt_key_gets_the_closest_one_suggested():
+    with pytest.raises(ScenarioError, match=r"wind\.sped_mps: .*did you mean speed_mps\?"):
+        Scenario.from_dict({"home": HOME, "wind": {"sped_mps": 3}}, source="field.yaml")
+
+
+def test_every_section_s_error_is_listed_at_once():
+    doc = {"home": HOME, "wind": {"speed_mps": -1}, "time_limit_s": -5, "traffic": [], "faults": {"at_s": 1}}
+    with pytest.raises(ScenarioError) as e:
+        Scenario.from_dict(doc, source="field.yaml")
+    lines = str(e.value).splitlines()
+    assert len(lines) == 4 and all(line.startswith("field.yaml: ") for line in lines)
+    assert [line.split(":")[1].strip() for line in lines] == ["traffic", "wind.speed_mps", "faults", "time_limit_s"]

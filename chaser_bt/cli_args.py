@@ -1,0 +1,161 @@
+"""The command line's argument checks: one parser class, value types and output-path checks.
+
+Every input error ends the same way: the subcommand's usage, then one line
+``chaser-bt: argument --OPTION: what was expected`` (with a "did you mean" for a near miss),
+exit 2. Value types reject impossible numbers at parse time, and output paths are checked
+there too, so a mistake stops the command before it connects to or flies anything.
+"""
+
+from __future__ import annotations
+
+import argparse
+import difflib
+import math
+import sys
+import tempfile
+from pathlib import Path
+from typing import Callable, Iterable, NoReturn
+
+__all__ = [
+    "PROG", "ChaserParser", "did_you_mean", "seed", "positive_float", "non_negative_float", "positive_int",
+    "non_negative_int", "port", "listen_port", "geodetic_point", "input_file", "output_file", "output_dir", "add_verbose_everywhere",
+]
+
+PROG = "chaser-bt"
+
+
+def did_you_mean(word: str, known: Iterable[str]) -> str:
+    """`` (did you mean X?)`` for the closest of ``known`` to ``word``, or ``""`` when none is close."""
+    close = difflib.get_close_matches(word, list(known), n=1, cutoff=0.6)
+    return f" (did you mean {close[0]}?)" if close else ""
+
+
+class ChaserParser(argparse.ArgumentParser):
+    """argparse with the project's error line: the (sub)command's usage, then ``chaser-bt: message``, exit 2.
+
+    Unknown options are reported by the subcommand that was given them (with its usage and a
+    "did you mean"), and an invalid choice names the closest valid one.
+    """
+
+    def error(self, message: str) -> NoReturn:
+        self.print_usage(sys.stderr)
+        self.exit(2, f"{PROG}: {message}\n")
+
+    def parse_known_args(self, args=None, namespace=None):
+        if self._subparsers is None and args is not None:  # a subcommand: name a misspelt option before a missing one
+            for text in args:
+                if text == "--":
+                    break
+                name = text.split("=", 1)[0]
+                if name.startswith("--") and not any(o.startswith(name) for o in self._option_string_actions):
+                    self.error(f"unrecognized option {name}{did_you_mean(name, self._option_string_actions)}")
+        namespace, extras = super().parse_known_args(args, namespace)
+        if extras and self._subparsers is None:  # a subcommand: nothing after it belongs to the top level
+            first = extras[0]
+            if first.startswith("-"):
+                name = first.split("=", 1)[0]
+                self.error(f"unrecognized option {name}{did_you_mean(name, self._option_string_actions)}")
+            self.error(f"unexpected argument {first!r}")
+        return namespace, extras
+
+    def _check_value(self, action: argparse.Action, value) -> None:
+        if action.choices is not None and value not in action.choices:
+            names = [str(c) for c in action.choices]
+            raise argparse.ArgumentError(
+                action, f"invalid choice {value!r}: expected one of {', '.join(names)}{did_you_mean(str(value), names)}")
+
+
+def _number(cast: Callable[[str], float], ok: Callable[[float], bool], expected: str) -> Callable[[str], float]:
+    what = "an integer" if cast is int else "a number"
+
+    def parse(text: str):
+        try:
+            value = cast(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {what} {expected}, got {text!r}") from None
+        if not ok(value):
+            raise argparse.ArgumentTypeError(f"expected {what} {expected}, got {text}")
+        return value
+
+    parse.__name__ = f"{what} {expected}"
+    return parse
+
+
+seed = _number(int, lambda v: 0 <= v < 2**32, "in [0, 2^32)")
+positive_float = _number(float, lambda v: math.isfinite(v) and v > 0, "> 0")
+non_negative_float = _number(float, lambda v: math.isfinite(v) and v >= 0, ">= 0")
+positive_int = _number(int, lambda v: v > 0, ">= 1")
+non_negative_int = _number(int, lambda v: v >= 0, ">= 0")
+port = _number(int, lambda v: 1 <= v <= 65535, "in 1-65535 (a UDP/TCP port)")
+listen_port = _number(int, lambda v: 0 <= v <= 65535, "in 0-65535 (a port; 0: any free one)")
+
+
+def geodetic_point(text: str) -> tuple[float, float, float]:
+    """``LAT,LON[,ALT]`` (deg, deg, m; ALT default 0) -> (lat, lon, alt)."""
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) not in (2, 3) or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"expected LAT,LON or LAT,LON,ALT in deg, deg, m, got {text!r}")
+    lat, lon, alt = (*values, 0.0)[:3]
+    if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+        raise argparse.ArgumentTypeError(f"expected a latitude in [-90, 90] and a longitude in [-180, 180], got {text}")
+    return lat, lon, alt
+
+
+def input_file(text: str) -> Path:
+    """A file to read: it exists and is a file."""
+    path = Path(text)
+    if not path.is_file():
+        raise argparse.ArgumentTypeError(f"no such file {path}" if not path.exists() else f"{path} is not a file")
+    return path
+
+
+def _writable_folder(folder: Path) -> str | None:
+    """Why files cannot be written into ``folder`` (None: they can)."""
+    if not folder.is_dir():
+        return f"no such folder {folder}"
+    try:  # try it: permission bits do not tell for root, /proc or a read-only mount
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        return f"folder {folder} is not writable ({exc.strerror or exc})"
+    return None
+
+
+def output_file(text: str) -> Path:
+    """A file to write: its folder exists and is writable, and it is not a folder itself."""
+    path = Path(text)
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{path} is a folder; expected a file name")
+    why = _writable_folder(path.parent if str(path.parent) else Path("."))
+    if why is not None:
+        raise argparse.ArgumentTypeError(f"cannot write {path}: {why}")
+    return path
+
+
+def output_dir(text: str) -> Path:
+    """A folder to write into: it is a writable folder, or the nearest existing folder above it is."""
+    path = Path(text)
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{path} is a file; expected a folder")
+    above = path
+    while not above.exists():
+        if above.parent == above:
+            break
+        above = above.parent
+    if not above.is_dir():
+        raise argparse.ArgumentTypeError(f"cannot create {path}: {above} is a file")
+    why = _writable_folder(above)
+    if why is not None:
+        raise argparse.ArgumentTypeError(f"cannot write into {path}: {why}")
+    return path
+
+
+def add_verbose_everywhere(subparsers: argparse._SubParsersAction) -> None:
+    """Let ``-v`` follow the subcommand as well as precede it."""
+    for parser in subparsers.choices.values():
+        if "-v" not in parser._option_string_actions:
+            parser.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS,
+                                help="more logging (-vv for debug); also accepted before the subcommand")

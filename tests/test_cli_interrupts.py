@@ -1,0 +1,98 @@
+"""Ctrl-C and SIGTERM: ``rehearse`` writes the report of the flight so far and exits 130; ``campaign``
+stops within 5 s, keeping every finished run."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PATROL = str(ROOT / "trees" / "patrol.yaml")
+SCENARIO = str(ROOT / "sitl" / "scenarios" / "patrol.yaml")
+
+
+def _cli(*args: str) -> subprocess.Popen:
+    env = dict(os.environ, PYTHONPATH=str(ROOT), MAVLINK20="1")
+    return subprocess.Popen([sys.executable, "-m", "chaser_bt.cli", *args], cwd=ROOT, env=env, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+
+
+def _wait_for_line(stream, needle: str, timeout_s: float) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        line = stream.readline()
+        if needle in line:
+            return
+        if not line:
+            break
+    raise AssertionError(f"no line with {needle!r} within {timeout_s} s")
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
+def test_rehearse_interrupted_writes_a_partial_report_and_exits_130(sig, tmp_path):
+    proc = _cli("rehearse", PATROL, "--scenario", SCENARIO, "--no-camera", "--json", "--show-ticks",
+                "--report", str(tmp_path / "report"))
+    try:
+        _wait_for_line(proc.stderr, "--- t = ", 120)  # the tree is ticking: the vehicle is being flown
+        proc.send_signal(sig)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+    report = json.loads(out)
+    assert report["outcome"] == "interrupted" and report["ticks"] > 0
+    assert (tmp_path / "report" / "report.md").is_file()
+    assert json.loads((tmp_path / "report" / "report.json").read_text())["outcome"] == "interrupted"
+
+
+@pytest.mark.slow
+def test_campaign_stops_within_5_s_of_ctrl_c_with_workers(tmp_path):
+    proc = _cli("campaign", PATROL, "--scenarios", SCENARIO, "--seeds", "1-60", "--workers", "2", "--quick",
+                "--no-camera", "--out", str(tmp_path / "c"))
+    try:
+        deadline = time.monotonic() + 120
+        while not list((tmp_path / "c").rglob("seed_*.json")) and time.monotonic() < deadline:
+            time.sleep(0.2)  # until a run is finished; the workers are flying the next ones
+        time.sleep(1.0)
+        proc.send_signal(signal.SIGINT)
+        sent = time.monotonic()
+        _, err = proc.communicate(timeout=30)
+        took = time.monotonic() - sent
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+    assert took < 5.0, err
+    assert "Traceback" not in err and "run the same command again to resume" in err
+    kept = list((tmp_path / "c").rglob("seed_*.json"))
+    assert 0 < len(kept) < 60 and f"{len(kept)} finished run(s) kept" in err
+
+
+@pytest.mark.slow
+def test_run_on_sigterm_halts_the_tree_finishes_the_log_and_exits_130(tmp_path):
+    sim = _cli("sitl", "--scenario", SCENARIO, "--speedup", "5", "--tcp-port", "15761", "--udp-port", "15551")
+    try:
+        _wait_for_line(sim.stdout, "connect with", 60)
+        run = _cli("run", PATROL, "--connect", "tcp:127.0.0.1:15761", "--record", str(tmp_path / "f.mcap"))
+        try:
+            _wait_for_line(run.stdout, "flying", 60)
+            time.sleep(3.0)
+            run.send_signal(signal.SIGTERM)
+            out, err = run.communicate(timeout=60)
+        finally:
+            run.kill()
+    finally:
+        sim.send_signal(signal.SIGTERM)
+        sim.communicate(timeout=30)
+    assert run.returncode == 130, err
+    assert "interrupted" in out and "Traceback" not in err
+    from chaser_bt.log.replay import read_log
+
+    assert not read_log(tmp_path / "f.mcap").truncated  # the recorder finished the file
