@@ -206,7 +206,7 @@ def _run(args: argparse.Namespace) -> int:
 
     tree = _load_tree(args.tree)
     hook = _recording_hook(args)
-    config = LinkConfig(signing=_signing(args))
+    config = LinkConfig(signing=_signing(args), timers_on_vehicle_time=args.clock == "vehicle")
     try:
         link = VehicleLink.connect(args.connect, config)
     except ValueError as exc:  # a malformed connection string
