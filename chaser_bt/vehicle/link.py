@@ -264,6 +264,10 @@ class VehicleLink:
         """The link's own clock (the injected ``monotonic``), on which every timer of the link runs."""
         return self._now()
 
+    def last_heard_s(self, mtype: str) -> float | None:
+        """Link time (:meth:`now`) of the latest ``mtype`` message from our vehicle; None: never heard."""
+        return self._stream_rx.get(mtype)
+
     @property
     def opened_at_s(self) -> float:
         """:meth:`now` when the link was opened: its timers and ``time_boot_ms`` count from here."""
