@@ -29,6 +29,7 @@ from typing import Any, Callable, Mapping
 import py_trees
 
 from chaser_bt.clock import Clock
+from chaser_bt.mission.resources import missing_resources
 from chaser_bt.tree import MissionTree
 from chaser_bt.vehicle import VehicleError, VehicleLink
 
@@ -135,7 +136,15 @@ class MissionRunner:
     # -- lifecycle --------------------------------------------------------------------------
 
     def setup(self) -> None:
-        """Hand the link, clock and resources to every behaviour (py_trees ``setup(**kwargs)``)."""
+        """Hand the link, clock and resources to every behaviour (py_trees ``setup(**kwargs)``).
+
+        Raises:
+            MissingResources: a leaf requires a resource the runner was not given (before any
+                behaviour's setup runs).
+        """
+        missing = missing_resources(self._bt.root, self.resources)
+        if missing is not None:
+            raise missing
         self._publish(self.clock.now())
         self._bt.setup(link=self.link, clock=self.clock, **self.resources)
         self._set_up = True
