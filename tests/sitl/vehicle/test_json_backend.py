@@ -3,6 +3,7 @@ over UDP, and the real ArduCopter SITL booting on it (slow; skips without ../sha
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -12,6 +13,7 @@ import subprocess
 import threading
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from sitl.vehicle.json_backend import (
@@ -92,16 +94,15 @@ def test_the_server_steps_in_lock_step_and_counts_resends_losses_and_restarts():
     assert (c.frames, c.resent, c.lost, c.restarts) == (4, 1, 1, 1)
 
 
-@pytest.mark.slow
-def test_real_arducopter_boots_on_our_json_backend_and_finds_its_home(tmp_path):
-    """Lock-step end to end: ArduCopter's EKF, GPS and home come up from our sensor frames alone."""
+@contextlib.contextmanager
+def _arducopter_on(physics, tmp_path, instance: int = 8, extra_params: str = ""):
+    """ArduCopter SITL (10x) flying ``physics`` through our JSON server; yields (link, server)."""
     from chaser_bt.vehicle import LinkConfig, VehicleLink
 
     where = Path(os.environ.get("CHASER_BT_ARDUPILOT", ROOT.parent / "shared" / "ardupilot"))
     if not (where / "arducopter").is_file():
         pytest.skip(f"no ArduCopter SITL at {where} (set CHASER_BT_ARDUPILOT to its folder)")
-    instance = 8
-    server = JsonPhysicsServer(instance, lambda packet, t: resting_on_the_ground(t))
+    server = JsonPhysicsServer(instance, physics)
     stop = threading.Event()
 
     def serve() -> None:
@@ -109,22 +110,20 @@ def test_real_arducopter_boots_on_our_json_backend_and_finds_its_home(tmp_path):
             server.serve_one(0.2)
 
     env = dict(os.environ, SITL_RUN_DIR=str(tmp_path / "run"), SITL_HOME="42.5,-71.6,80,0")
+    if extra_params:
+        (tmp_path / "extra.parm").write_text(extra_params)
+        env["SITL_DEFAULTS"] = str(tmp_path / "extra.parm")
     thread = threading.Thread(target=serve, daemon=True)
     thread.start()
-    started = subprocess.run([str(where / "start_sitl.sh"), str(instance), "10", "JSON:127.0.0.1"],
-                             capture_output=True, text=True, env=env, timeout=90)
     pid_file = tmp_path / "run" / f"I{instance}" / "sitl.pid"
     link = None
     try:
+        started = subprocess.run([str(where / "start_sitl.sh"), str(instance), "10", "JSON:127.0.0.1"],
+                                 capture_output=True, text=True, env=env, timeout=90)
         assert started.returncode == 0, started.stdout + started.stderr
-        link = VehicleLink.connect(started.stdout.strip().splitlines()[-1], LinkConfig(connect_timeout_s=30.0))
-        link.wait(lambda s: s.home is not None and s.gps_fix_type >= 3, 120.0)
-        s = link.state
-        assert s.home.lat_deg == pytest.approx(42.5, abs=1e-5) and s.home.lon_deg == pytest.approx(-71.6, abs=1e-5)
-        assert abs(s.alt_rel_m) < 1.0 and not s.armed
-        # One clock: the vehicle's boot time is our physics time (its frames are answered in order).
-        assert server.counters.resent == 0 and server.counters.lost == 0
-        assert link.state.t_boot_s == pytest.approx(server.time_s, abs=0.5)
+        link = VehicleLink.connect(started.stdout.strip().splitlines()[-1],
+                                   LinkConfig(connect_timeout_s=30.0, timers_on_vehicle_time=True))
+        yield link, server
     finally:
         if link is not None:
             link.close()
@@ -133,6 +132,42 @@ def test_real_arducopter_boots_on_our_json_backend_and_finds_its_home(tmp_path):
         stop.set()
         thread.join(5.0)
         server.close()
+
+
+@pytest.mark.slow
+def test_real_arducopter_boots_on_our_json_backend_and_finds_its_home(tmp_path):
+    """Lock-step end to end: ArduCopter's EKF, GPS and home come up from our sensor frames alone."""
+    with _arducopter_on(lambda packet, t: resting_on_the_ground(t), tmp_path) as (link, server):
+        link.wait(lambda s: s.home is not None and s.gps_fix_type >= 3, 120.0)
+        s = link.state
+        assert s.home.lat_deg == pytest.approx(42.5, abs=1e-5) and s.home.lon_deg == pytest.approx(-71.6, abs=1e-5)
+        assert abs(s.alt_rel_m) < 1.0 and not s.armed
+        # One clock: the vehicle's boot time is our physics time (its frames are answered in order).
+        assert server.counters.resent == 0 and server.counters.lost == 0
+        assert link.state.t_boot_s == pytest.approx(server.time_s, abs=0.5)
+
+
+@pytest.mark.slow
+def test_real_arducopter_takes_off_and_holds_10_m_on_our_motor_level_quad(tmp_path):
+    """ArduCopter's own attitude, rate and position loops fly our rotors (about 15 s of wall time)."""
+    from sitl.vehicle.rotor_body import QuadRotorBody
+
+    body = QuadRotorBody()
+    # SIM_RATE_HZ must be at least 1.8x the 400 Hz loop (a pre-arm check); 800 halves the default's cost.
+    with _arducopter_on(body.physics, tmp_path, extra_params="SIM_RATE_HZ 800\n") as (link, server):
+        assert link.wait(lambda s: s.ready_to_arm, 200.0)
+        assert link.wait(link.set_mode("GUIDED"), 20.0).ok
+        assert link.wait(link.arm(), 30.0).ok
+        assert link.wait(link.takeoff(10.0), 20.0).ok
+        assert link.wait(lambda s: s.alt_rel_m > 9.5, 30.0)
+        t_reached = link.state.t_boot_s
+        worst = 0.0
+        while link.state.t_boot_s < t_reached + 8.0:
+            link.wait(lambda s: True, 1.0)
+            link.poll()
+            worst = max(worst, abs(-body.position_ned[2] - 10.0), float(np.hypot(*body.position_ned[:2])))
+        assert worst < 1.0 and link.state.mode == "GUIDED" and link.state.armed
+        assert server.counters.resent == 0
 
 
 def _stop(pid: int) -> None:
