@@ -115,7 +115,7 @@ class StreamVerifier:
         if len(datagram) < OVERHEAD:
             self.counters.forged += 1
             return None
-        magic, version, link_id, stamp = AUTH_HEADER.unpack_from(datagram)
+        _, version, link_id, stamp = AUTH_HEADER.unpack_from(datagram)
         header, mac = datagram[:AUTH_HEADER.size], datagram[AUTH_HEADER.size:OVERHEAD]
         payload = datagram[OVERHEAD:]
         if version != AUTH_VERSION or not hmac.compare_digest(mac, _mac(self._key, header, payload)):

@@ -74,7 +74,7 @@ def test_rc_override_resent_at_5hz_of_vehicle_time_at_10x():
 
 def test_on_the_link_clock_alone_the_vehicle_sees_a_heartbeat_every_10_s():
     """What the option is for: without it the 10x vehicle goes into GCS failsafe (RTL)."""
-    sim, link, sent, step = _flying_at_speedup(False)
+    sim, _, _, step = _flying_at_speedup(False)
     start = sim.time_s
     while sim.time_s < start + 15.0 and not sim.autopilot.fs_gcs:
         step()
