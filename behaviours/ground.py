@@ -4,7 +4,8 @@
 (``/target/estimate``) when it is new, the radar tracks (from the ``radar=`` resource, the picture
 the radar behaviours see this tick) or else the radar cue (``/target/cue``), and at ``video_hz``
 the camera resource's last frame with the pipeline's current box drawn. The wire format is
-docs/ground.md (:mod:`chaser_bt.ground.protocol`). Streaming never fails a mission: it is RUNNING
+docs/ground.md (:mod:`chaser_bt.ground.protocol`); with ``key_file`` every datagram carries an
+HMAC (:mod:`chaser_bt.ground.auth`). Streaming never fails a mission: it is RUNNING
 every tick, whatever the network does (errors are dropped datagrams, counted and logged once).
 """
 
@@ -18,10 +19,12 @@ from behaviours.base import VehicleBehaviour, optional_input, state_port
 from chaser_bt.cue import TargetCue, TargetEstimate
 from behaviours.sar import FIND_KEY
 from chaser_bt.find import Find
+from chaser_bt.ground.auth import StreamSigner
 from chaser_bt.ground.protocol import Box, cue_message, estimate_message, find_message, status_message, tracks_message
 from chaser_bt.ground.sender import GroundSender
 from chaser_bt.radar.feed import RadarFeed
 from chaser_bt.tree import NodeKind, input_port, register_behaviour
+from chaser_bt.vehicle.signing import load_key
 from chaser_bt.vision.pipeline import CameraSensor
 
 Status = py_trees.common.Status
@@ -37,6 +40,9 @@ class StreamToGround(VehicleBehaviour):
         "port": input_port(int, "Ground station UDP port", default=14600),
         "video_hz": input_port(float, "Video frames per second (0: no video)", default=5.0),
         "jpeg_quality": input_port(int, "JPEG quality of the video (1-100)", default=70),
+        "key_file": input_port(str, "Sign every datagram with this key file (MAVLink signing's format; "
+                                    "empty: unsigned)", default=""),
+        "link_id": input_port(int, "This sender's link id in the signatures (0-255)", default=0),
         "estimate": input_port(TargetEstimate, "The camera's target estimate", required=False,
                                default_key="/target/estimate"),
         "cue": input_port(TargetCue, "The radar cue (sent when there is no radar resource)", required=False,
@@ -58,6 +64,9 @@ class StreamToGround(VehicleBehaviour):
         self._last_find_t: float | None = None
         self._last_frame_index: int | None = None
         self._next_frame_t = float("-inf")
+        key_file = self.get_input("key_file")
+        # Loaded before take-off: a key file that cannot be read stops the mission here, not in flight.
+        self.signer = StreamSigner(load_key(key_file), self.get_input("link_id")) if key_file else None
 
     def initialise(self) -> None:
         host, port = self.get_input("host"), self.get_input("port")
@@ -66,7 +75,7 @@ class StreamToGround(VehicleBehaviour):
                 self.sender.close()
             self._host = host
             try:
-                self.sender = GroundSender(host, port)
+                self.sender = GroundSender(host, port, signer=self.signer)
             except ValueError as e:  # a bad address: say so, keep the mission flying
                 self.sender = None
                 self.feedback_message = f"not streaming: {e}"

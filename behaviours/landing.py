@@ -1,4 +1,10 @@
-"""RTL and Land: hand the aircraft to ArduCopter's own return and landing, and wait for touchdown."""
+"""RTL and Land: hand the aircraft to ArduCopter's own return and landing, and wait for touchdown.
+
+Both succeed only for a flight that happened: a vehicle disarmed on the ground when the leaf
+starts has nothing to return from, and "landed and disarmed" would report a flight that never
+flew (a tree whose take-off failed, ticked into its RTL, must not end in SUCCESS). They fail then,
+without commanding anything.
+"""
 
 from __future__ import annotations
 
@@ -14,7 +20,8 @@ Status = py_trees.common.Status
 
 
 class _AutopilotLanding(CommandingBehaviour):
-    """Request a landing mode once; SUCCESS on acceptance, or once landed and disarmed."""
+    """Request a landing mode once; SUCCESS on acceptance, or once landed and disarmed; FAILURE at
+    once when the vehicle was disarmed on the ground to begin with."""
 
     MODE = ""
     # RTL and LAND are already the safe end state: halting them must not replace them with a hover.
@@ -31,10 +38,13 @@ class _AutopilotLanding(CommandingBehaviour):
         """Send this leaf's one link command."""
 
     def initialise(self) -> None:
-        self._command = self._request()
+        self._command: Command | None = self._request() if self.state.armed else None
 
     def update(self) -> Status:
         state = self.state
+        if self._command is None:
+            self.feedback_message = f"disarmed on the ground: no flight to end with {self.MODE}"
+            return Status.FAILURE
         if not self._command.done:
             self.feedback_message = f"requesting {self.MODE}"
             return Status.RUNNING

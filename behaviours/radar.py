@@ -26,6 +26,8 @@ CUE_KEY = "/target/cue"
 class _RadarBehaviour(VehicleBehaviour):
     """Takes the radar feed from setup and updates it with the ownship's state once per tick."""
 
+    REQUIRES_RESOURCES = ("radar",)  # checked before the flight (chaser_bt.mission.resources)
+
     def setup(self, **kwargs: Any) -> None:
         super().setup(**kwargs)
         if not isinstance(kwargs.get("radar"), RadarFeed):

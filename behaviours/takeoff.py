@@ -26,7 +26,9 @@ class ArmAndTakeoff(CommandingBehaviour):
 
     Each step is one non-blocking link command; the link itself waits (bounded) for the vehicle's
     pre-arm readiness before arming (DESIGN §5). Already airborne: climbs straight to the altitude
-    with a position target, since ArduCopter refuses a takeoff command in flight.
+    with a position target, since ArduCopter refuses a takeoff command in flight. Once in GUIDED,
+    a change to any other mode (a failsafe RTL, the pilot's switch) fails it at once: the climb
+    is no longer ours to report.
     """
 
     INPUT_PORTS = {
@@ -38,6 +40,7 @@ class ArmAndTakeoff(CommandingBehaviour):
 
     def initialise(self) -> None:
         self._command: Command | None = None
+        self._guided = self.state.mode == "GUIDED"  # from here on, leaving GUIDED fails the take-off
         if self.state.airborne:
             self._phase = _Phase.CLIMB
             pos = self.state.position_enu
@@ -47,6 +50,10 @@ class ArmAndTakeoff(CommandingBehaviour):
             self._command = self._link().set_mode("GUIDED")
 
     def update(self) -> Status:
+        mode = self.state.mode
+        if self._guided and mode != "GUIDED":
+            self.feedback_message = f"{self._phase.value}: mode taken away ({mode or 'unknown'})"
+            return Status.FAILURE
         if self._phase is not _Phase.CLIMB:
             status = self._advance()
             if status is not None:
@@ -63,6 +70,7 @@ class ArmAndTakeoff(CommandingBehaviour):
             self.feedback_message = f"{self._phase.value} failed: {self._command.reason or self._command.status.name}"
             return Status.FAILURE
         self._phase = _NEXT[self._phase]
+        self._guided = True  # GUIDED was accepted and shows in the heartbeat
         link = self._link()
         if self._phase is _Phase.ARM:
             self._command = link.arm()

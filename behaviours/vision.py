@@ -64,6 +64,7 @@ class VisionPipeline(VehicleBehaviour):
     """Process one camera frame; SUCCESS with a target estimate written, FAILURE when none is seen."""
 
     NODE_KIND = NodeKind.ACTION
+    REQUIRES_RESOURCES = ("camera",)  # checked before the flight (chaser_bt.mission.resources)
     INPUT_PORTS = {
         "range_from_telemetry": input_port(bool, "Take range from the target's telemetry, not the box size", default=False),
         "telemetry": input_port(TargetCue, "Target's own position (telemetry cue)", required=False, default_key=TELEMETRY_KEY),

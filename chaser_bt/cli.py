@@ -265,14 +265,19 @@ def _run(args: argparse.Namespace) -> int:
 
 def _fly(args: argparse.Namespace, tree, monitor) -> int:
     from chaser_bt.clock import FunctionClock, WallClock
-    from chaser_bt.mission.flight_sensors import FlightSensorError
+    from chaser_bt.mission.flight_sensors import FlightSensorError, check_sensors
     from chaser_bt.mission.runner import MissionRunner, RunStatus
     from chaser_bt.vehicle import LinkConfig, VehicleError, VehicleLink
 
+    try:  # before connecting: a tree that needs a sensor it was not given never reaches the vehicle
+        check_sensors(tree, _sensor_options(args))
+    except FlightSensorError as exc:
+        raise _BadInput(f"{args.tree}: {exc}") from None
     hook = _recording_hook(args)
     from chaser_bt.geo import GeoPoint
 
-    config = LinkConfig(signing=_signing(args), origin=None if args.origin is None else GeoPoint(*args.origin))
+    config = LinkConfig(signing=_signing(args), origin=None if args.origin is None else GeoPoint(*args.origin),
+                        timers_on_vehicle_time=args.clock == "vehicle")
     try:
         link = VehicleLink.connect(args.connect, config)
     except ValueError as exc:  # a malformed connection string
@@ -353,19 +358,23 @@ def _rehearse(args: argparse.Namespace) -> int:
     return EXIT_OK if report.outcome in ("landed", "completed", "following") else EXIT_FAILED
 
 
+def _sensor_options(args: argparse.Namespace):
+    """The sensors the operator named on ``run``."""
+    from chaser_bt.mission.flight_sensors import FlightSensorOptions
+
+    return FlightSensorOptions(radar_listen=args.radar, radar_pose_file=args.radar_pose,
+                               radar_time_offset_s=args.radar_time_offset, camera=args.camera,
+                               camera_size=args.camera_size, telemetry=not args.no_telemetry)
+
+
 def _flight_sensors(args: argparse.Namespace, link, clock) -> dict:
     """The resources ``run`` hands the tree: radar, camera and target telemetry as the operator named them."""
     import time
 
-    from chaser_bt.mission.flight_sensors import (
-        FlightSensorOptions,
-        build_flight_sensors,
-    )
+    from chaser_bt.mission.flight_sensors import build_flight_sensors
     from chaser_bt.vehicle import VehicleError
 
-    options = FlightSensorOptions(radar_listen=args.radar, radar_pose_file=args.radar_pose,
-                                  radar_time_offset_s=args.radar_time_offset, camera=args.camera,
-                                  camera_size=args.camera_size, telemetry=not args.no_telemetry)
+    options = _sensor_options(args)
     if options.radar_listen is not None:  # the radar's pose is placed in the vehicle's home frame
         deadline = time.monotonic() + 15.0
         while link.frame is None and time.monotonic() < deadline:

@@ -140,3 +140,15 @@ def test_simulator_commands_are_listed_but_loaded_only_when_named(capsys):
         main(["search-trial", "--help"])
     assert exc.value.code == 0
     assert "--planner" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("tree, needs", [("chase.yaml", ("--radar", "--camera")), ("chase.xml", ("--radar", "--camera")),
+                                         ("sar.yaml", ("--camera",))])
+def test_run_refuses_a_tree_needing_a_sensor_it_was_not_given_before_connecting(tree, needs, capsys):
+    # Nothing listens on port 9: a run that tried to connect would say "cannot connect" and exit 1.
+    assert main(["run", str(ROOT / "trees" / tree), "--connect", "tcp:127.0.0.1:9"]) == 2
+    err = capsys.readouterr().err
+    assert "cannot connect" not in err and "Traceback" not in err and "KeyError" not in err
+    for flag in needs:
+        assert flag in err
+    assert ("--radar" in err) == ("--radar" in needs)

@@ -16,6 +16,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from chaser_bt.ground.auth import OVERHEAD, StreamSigner
 from chaser_bt.ground.protocol import MAX_DATAGRAM, Box, chunk_frame, draw_boxes, encode_jpeg, json_datagram
 
 __all__ = ["GroundSender", "SenderCounters"]
@@ -45,13 +46,15 @@ class GroundSender:
     Args:
         host: the ground station's address (name or IP; resolved once, here).
         port: its UDP port.
-        max_datagram: largest datagram sent (video is chunked to fit).
+        max_datagram: largest datagram sent (video is chunked to fit, signature included).
+        signer: signs every datagram (:mod:`chaser_bt.ground.auth`); None: the stream is unsigned.
 
     Raises:
         ValueError: the host does not resolve or the port is outside 1..65535.
     """
 
-    def __init__(self, host: str, port: int, *, max_datagram: int = MAX_DATAGRAM) -> None:
+    def __init__(self, host: str, port: int, *, max_datagram: int = MAX_DATAGRAM,
+                 signer: StreamSigner | None = None) -> None:
         if not 1 <= int(port) <= 65535:
             raise ValueError(f"ground port {port}: expected 1..65535")
         try:
@@ -60,6 +63,7 @@ class GroundSender:
             raise ValueError(f"ground host {host!r} does not resolve: {e}") from e
         self.address = addr
         self.max_datagram = max_datagram
+        self.signer = signer
         self.sock = socket.socket(family, socket.SOCK_DGRAM)
         self.sock.setblocking(False)
         # A video frame leaves as a burst of chunks: give the kernel room for a few of them.
@@ -80,7 +84,8 @@ class GroundSender:
     def send_frame(self, image: np.ndarray, t: float, boxes: Sequence[Box] = (), quality: int = 70) -> bool:
         """One video frame with ``boxes`` drawn, JPEG at ``quality``, chunked; whether every chunk left."""
         jpeg = encode_jpeg(draw_boxes(image, boxes) if boxes else image, quality)
-        chunks = chunk_frame(jpeg, self._frame_id, t, self.max_datagram)
+        room = self.max_datagram - (OVERHEAD if self.signer is not None else 0)
+        chunks = chunk_frame(jpeg, self._frame_id, t, room)
         self._frame_id = (self._frame_id + 1) & 0xFFFFFFFF
         ok = True
         for chunk in chunks:
@@ -94,6 +99,8 @@ class GroundSender:
         self.sock.close()
 
     def _send(self, data: bytes) -> bool:
+        if self.signer is not None:
+            data = self.signer.sign(data)
         try:
             self.sock.sendto(data, self.address)
         except OSError as e:  # BlockingIOError (buffer full), ECONNREFUSED, ENETUNREACH, EMSGSIZE, ...

@@ -15,12 +15,14 @@ from pathlib import Path
 from typing import Any
 
 from chaser_bt.geo import GeoPoint
+from chaser_bt.mission.resources import missing_resources
 from chaser_bt.radar.feed import RadarFeed
 from chaser_bt.radar.geometry import RadarPose
 from chaser_bt.radar.stream import UdpDatagramSource
 from chaser_bt.target_telemetry import TargetTelemetry
 
-__all__ = ["FlightSensorOptions", "FlightSensorError", "load_radar_pose", "build_flight_sensors"]
+__all__ = ["FlightSensorOptions", "FlightSensorError", "RESOURCE_FLAGS", "build_flight_sensors", "check_sensors",
+           "load_radar_pose"]
 
 _POSE_FIELDS = ("lat_deg", "lon_deg", "alt_m", "yaw_deg", "pitch_deg", "roll_deg")
 
@@ -40,6 +42,27 @@ class FlightSensorOptions:
     camera: str | None = None
     camera_size: tuple[int, int] | None = None
     telemetry: bool = True
+
+
+#: How an operator gives ``chaser-bt run`` each resource a leaf may require.
+RESOURCE_FLAGS = {
+    "radar": "--radar HOST:PORT and --radar-pose FILE.json",
+    "camera": "--camera SOURCE (a video file, stream URL or device index)",
+}
+
+
+def check_sensors(tree: Any, options: FlightSensorOptions) -> None:
+    """Refuse, before anything connects, a tree whose leaves need a sensor ``options`` does not give.
+
+    Raises:
+        FlightSensorError: naming each missing sensor, the nodes that need it and the flag to give.
+    """
+    given = {name for name, on in (("radar", options.radar_listen is not None),
+                                   ("camera", options.camera is not None),
+                                   ("target_telemetry", options.telemetry)) if on}
+    missing = missing_resources(tree.root, given, how=RESOURCE_FLAGS, what=f"tree {tree.name}")
+    if missing is not None:
+        raise FlightSensorError(str(missing))
 
 
 def load_radar_pose(path: Path) -> tuple[GeoPoint, tuple[float, float, float]]:

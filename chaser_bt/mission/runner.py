@@ -7,6 +7,11 @@ The runner owns the wiring every mission shares, so behaviours stay thin:
   time under :data:`MISSION_TIME_KEY`) before every tick, so leaves read it through their ports;
 * ticks happen when the clock says one is due, never from a sleep, so the same loop runs lock-step
   inside a rehearsal (:meth:`tick_if_due`) and in real time against a vehicle (:meth:`run`);
+* :meth:`run` ticks only once the vehicle has reported what every tree reads: a HEARTBEAT,
+  SYS_STATUS (battery, pre-arm health) and a position in the mission's frame (GLOBAL_POSITION_INT and
+  home). A freshly booted ArduCopter sends HEARTBEATs long before its home is set, and a tree
+  ticked on that reads "battery unknown" and "disarmed on the ground". The wait is bounded
+  (``telemetry_timeout_s`` on the link's clock) and ends in an error naming what never came;
 * a stop (success, failure, Ctrl-C, an exception in a leaf) halts the tree, which makes every
   running leaf terminate and hover, then sends the hover command once more for good measure
   (paper section 3.2: hover on exit).
@@ -24,6 +29,7 @@ from typing import Any, Callable, Mapping
 import py_trees
 
 from chaser_bt.clock import Clock
+from chaser_bt.mission.resources import missing_resources
 from chaser_bt.tree import MissionTree
 from chaser_bt.vehicle import VehicleError, VehicleLink
 
@@ -33,6 +39,13 @@ log = logging.getLogger(__name__)
 
 VEHICLE_STATE_KEY = "/vehicle/state"
 MISSION_TIME_KEY = "/mission/time_s"
+
+# What the first tick needs from the vehicle besides its home: message type, and why.
+_FIRST_TICK_NEEDS = (
+    ("HEARTBEAT", "mode and armed state"),
+    ("SYS_STATUS", "battery and pre-arm health"),
+    ("GLOBAL_POSITION_INT", "position"),
+)
 
 
 class RunStatus(enum.Enum):
@@ -80,6 +93,8 @@ class MissionRunner:
         resources: more shared objects for behaviours' ``setup()`` beside ``link`` and ``clock``
             (e.g. ``radar=RadarFeed(...)``); a behaviour that needs one says so at setup.
         perf_counter: wall timer used only to measure how long a tick takes (diagnostics).
+        telemetry_timeout_s: how long :meth:`run` waits, on the link's clock, for the telemetry the
+            first tick needs (:meth:`waiting_for`); ArduCopter sets home ~40 s after boot.
     """
 
     def __init__(
@@ -91,9 +106,13 @@ class MissionRunner:
         rate_hz: float = 10.0,
         resources: Mapping[str, Any] | None = None,
         perf_counter: Callable[[], float] = time.perf_counter,
+        telemetry_timeout_s: float = 90.0,
     ) -> None:
         if rate_hz <= 0:
             raise ValueError(f"rate_hz must be positive, got {rate_hz}")
+        if not telemetry_timeout_s > 0:
+            raise ValueError(f"telemetry_timeout_s must be positive, got {telemetry_timeout_s}")
+        self.telemetry_timeout_s = float(telemetry_timeout_s)
         self.tree = tree
         self.link = link
         self.clock = clock
@@ -117,7 +136,15 @@ class MissionRunner:
     # -- lifecycle --------------------------------------------------------------------------
 
     def setup(self) -> None:
-        """Hand the link, clock and resources to every behaviour (py_trees ``setup(**kwargs)``)."""
+        """Hand the link, clock and resources to every behaviour (py_trees ``setup(**kwargs)``).
+
+        Raises:
+            MissingResources: a leaf requires a resource the runner was not given (before any
+                behaviour's setup runs).
+        """
+        missing = missing_resources(self._bt.root, self.resources)
+        if missing is not None:
+            raise missing
         self._publish(self.clock.now())
         self._bt.setup(link=self.link, clock=self.clock, **self.resources)
         self._set_up = True
@@ -200,6 +227,16 @@ class MissionRunner:
         except Exception as exc:  # nothing more can be sent; the autopilot's failsafes take over
             log.error("could not send hover on stop: %s", exc)
 
+    def waiting_for(self) -> list[str]:
+        """The telemetry the first tick needs and the vehicle has not sent yet (empty: ready)."""
+        link, missing = self.link, []
+        for mtype, why in _FIRST_TICK_NEEDS:
+            if link.last_heard_s(mtype) is None:
+                missing.append(f"{mtype} ({why})")
+        if link.frame is None:
+            missing.append("HOME_POSITION (the mission's ENU frame; ArduCopter sets home at its GPS fix)")
+        return missing
+
     def tip_message(self) -> str:
         """The deepest running node and its feedback: why the tree is where it is."""
         tip = self._bt.root.tip()
@@ -221,6 +258,12 @@ class MissionRunner:
         try:
             if not self._set_up:
                 self.setup()
+            missing = self._await_telemetry(should_stop, idle)
+            if missing:
+                message = (f"no {', no '.join(missing)} from the vehicle within {self.telemetry_timeout_s:g} s: "
+                           f"not ticking a tree on a vehicle it cannot see")
+                self.stop(message)
+                return RunResult(RunStatus.ERROR, self.ticks, message)
             while not should_stop():
                 self.link.poll()
                 if self.tick_if_due() and self.finished:
@@ -243,6 +286,22 @@ class MissionRunner:
             return RunResult(RunStatus.ERROR, self.ticks, f"{type(exc).__name__}: {exc}")
 
     # -- internals --------------------------------------------------------------------------
+
+    def _await_telemetry(self, should_stop: Callable[[], bool], idle: Callable[[], None]) -> list[str]:
+        """Poll until :meth:`waiting_for` is empty or the timeout passes; what is still missing."""
+        start = self.link.now()
+        missing = self.waiting_for()
+        logged = False
+        while missing and not should_stop():
+            if self.link.now() - start >= self.telemetry_timeout_s:
+                return missing
+            if not logged:
+                log.info("waiting for the vehicle's %s before the first tick", ", ".join(missing))
+                logged = True
+            idle()
+            self.link.poll()
+            missing = self.waiting_for()
+        return []
 
     def _publish(self, now: float) -> None:
         self._blackboard.set(VEHICLE_STATE_KEY, self.link.state)

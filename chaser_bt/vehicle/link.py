@@ -7,7 +7,11 @@ or a real aircraft; only the connection string changes (DESIGN §5). Its rules:
   :meth:`VehicleLink.wait`. :meth:`~VehicleLink.poll` drains what arrived, updates the state,
   moves commands along (acks, retries, timeouts, readiness waits) and sends what is due.
 - Every timer runs on the injected ``monotonic`` callable, so a rehearsal on the simulator's
-  clock is reproducible and independent of how fast the host runs.
+  clock is reproducible and independent of how fast the host runs. With
+  ``LinkConfig.timers_on_vehicle_time`` the heartbeat and RC-override resends also keep to the
+  vehicle's own time (``time_boot_ms``), so a simulator at any speed-up sees them at their rate
+  (:mod:`chaser_bt.vehicle.cadence`); silence and ack timeouts stay on ``monotonic``, which runs
+  on when a quiet vehicle's time stops.
 - It keeps ArduCopter fed the way ArduCopter expects: a GCS HEARTBEAT at 1 Hz (FS_GCS failsafe),
   SET_MESSAGE_INTERVAL per stream (SITL streams little unless asked), HOME_POSITION asked for with
   MAV_CMD_REQUEST_MESSAGE until it arrives, and a held RC override resent at 5 Hz (overrides
@@ -40,6 +44,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from chaser_bt.geo import GeoPoint, LocalFrame, enu_to_ned, enu_yaw_to_heading, wrap_pi
+from chaser_bt.vehicle.cadence import Cadence
 from chaser_bt.vehicle.commands import Command, CommandTracker, Setpoint
 from chaser_bt.vehicle.connection import PipeConnection, mavutil, open_connection
 from chaser_bt.vehicle.errors import CommandRejected, LinkTimeout, VehicleError, VehicleQuiet, VehicleUnreachable
@@ -115,6 +120,9 @@ class LinkConfig:
     stream_rates_hz: Mapping[str, float] = field(default_factory=lambda: DEFAULT_STREAM_RATES_HZ)
     origin: GeoPoint | None = None  # ENU origin; None: the vehicle's home
     signing: SigningConfig | None = None  # MAVLink 2 signing key and link id; None: unsigned link
+    # Heartbeats and RC-override resends also keep to the vehicle's time (its time_boot_ms), so a
+    # simulator at speed-up sees them at their rate in its own time (chaser_bt.vehicle.cadence).
+    timers_on_vehicle_time: bool = False
 
     def __post_init__(self) -> None:
         for name in ("gcs_sysid", "gcs_compid"):
@@ -173,12 +181,12 @@ class VehicleLink:
         self._opened_at = t
         self._last_rx_t = t
         self._last_rx_type = ""
-        self._next_heartbeat = t
+        self._heartbeat = Cadence(config.heartbeat_period_s, t)
         self._streams_checked_at: float | None = None
         self._stream_rx: dict[str, float] = {}
         self._next_home_request = t
         self._rc_hold: tuple[int, int, int, int] | None = None
-        self._next_rc = t
+        self._rc_resend = Cadence(1.0 / config.rc_resend_hz, t)
         self._on_receive: list[Callable[[Any], None]] = []
         self._on_send: list[Callable[[Any], None]] = []
         self._wire_taps: list[tuple[Callable[[bytes], None], Callable[[float], None]]] = []
@@ -255,6 +263,10 @@ class VehicleLink:
     def now(self) -> float:
         """The link's own clock (the injected ``monotonic``), on which every timer of the link runs."""
         return self._now()
+
+    def last_heard_s(self, mtype: str) -> float | None:
+        """Link time (:meth:`now`) of the latest ``mtype`` message from our vehicle; None: never heard."""
+        return self._stream_rx.get(mtype)
 
     @property
     def opened_at_s(self) -> float:
@@ -457,7 +469,7 @@ class VehicleLink:
         self._rc_hold = tuple(int(v) for v in channels)  # type: ignore[assignment]
         now = self._now()
         self._send_rc(self._rc_hold)
-        self._next_rc = now + 1.0 / self.config.rc_resend_hz
+        self._rc_resend.restart(now, self._vehicle_t())
         self.last_setpoint = Setpoint("rc_override", now, tuple(float(v) for v in channels))
 
     def release_rc(self) -> None:
@@ -609,10 +621,10 @@ class VehicleLink:
             self.release_rc()
 
     def _send_due(self, now: float) -> None:
-        if _due(now, self._next_heartbeat):
+        vehicle_t = self._vehicle_t()
+        if self._heartbeat.fire(now, vehicle_t):
             self.conn.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
                                          mavlink.MAV_STATE_ACTIVE)
-            self._next_heartbeat = _next_slot(self._next_heartbeat, self.config.heartbeat_period_s, now)
         if self.target_compid is None:
             return
         if self._streams_checked_at is None or _due(now, self._streams_checked_at + _STREAM_CHECK_S):
@@ -620,9 +632,8 @@ class VehicleLink:
         if self.state.home is None and _due(now, self._next_home_request):
             self._send_command_long(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_HOME_POSITION)
             self._next_home_request = now + _HOME_REQUEST_S
-        if self._rc_hold is not None and _due(now, self._next_rc):
+        if self._rc_hold is not None and self._rc_resend.fire(now, vehicle_t):
             self._send_rc(self._rc_hold)
-            self._next_rc = _next_slot(self._next_rc, 1.0 / self.config.rc_resend_hz, now)
 
     def _request_streams(self, now: float) -> None:
         """Ask for every configured stream the first time, then again for those not arriving."""
@@ -723,6 +734,10 @@ class VehicleLink:
     def _answer_budget_s(self) -> float:
         return self.config.ack_timeout_s * (self.config.retries + 1)
 
+    def _vehicle_t(self) -> float:
+        """The vehicle's time for the cadences when they keep to it (``nan``: the link's clock only)."""
+        return self.state.t_boot_s if self.config.timers_on_vehicle_time else math.nan
+
     def _time_boot_ms(self) -> int:
         return int((self._now() - self._opened_at) * 1000) & 0xFFFFFFFF
 
@@ -730,13 +745,6 @@ class VehicleLink:
 def _due(now: float, when: float) -> bool:
     """``now`` has reached ``when`` (a microsecond of slack absorbs float error in the clock)."""
     return now >= when - 1e-6
-
-
-def _next_slot(scheduled: float, period: float, now: float) -> float:
-    """The next time on a fixed cadence, so late polls do not stretch the period; after a long
-    pause the cadence restarts from ``now`` instead of sending a burst."""
-    nxt = scheduled + period
-    return nxt if nxt > now else now + period
 
 
 def _is_autopilot(msg: Any) -> bool:

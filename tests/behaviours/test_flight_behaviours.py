@@ -105,3 +105,40 @@ def test_rtl_without_waiting_succeeds_once_accepted(vehicle):
     status, _ = fly(vehicle, "RTL: {wait_landed: false}", timeout_s=10)
     assert status == Status.SUCCESS
     assert vehicle.sim.autopilot.mode == "RTL" and vehicle.sim.autopilot.armed
+
+
+@pytest.mark.parametrize("body", ["RTL: {wait_landed: true}", "RTL: {wait_landed: false}", "Land"])
+def test_rtl_and_land_fail_on_a_vehicle_that_never_flew(vehicle, body):
+    """Disarmed on the ground, "landed and disarmed" would report a flight that never happened."""
+    assert vehicle.run_until(lambda: vehicle.link.frame is not None, 30.0)
+    status, runner = fly(vehicle, body, timeout_s=10)
+    assert status == Status.FAILURE
+    assert "disarmed on the ground" in runner.tree.root.feedback_message
+    assert vehicle.sim.autopilot.mode != "RTL" and vehicle.sim.autopilot.mode != "LAND"  # nothing was commanded
+
+
+def test_rtl_succeeds_for_a_vehicle_armed_on_the_ground(vehicle):
+    """Armed counts as a flight: ArduCopter's RTL disarms a copter that has not taken off yet."""
+    vehicle.link.wait(vehicle.link.set_mode("GUIDED"), 60.0, pump=vehicle.step)
+    vehicle.link.wait(vehicle.link.arm(), 120.0, pump=vehicle.step)
+    status, runner = fly(vehicle, "RTL: {wait_landed: true}", timeout_s=30)
+    assert status == Status.SUCCESS, runner.tip_message()
+    assert not vehicle.sim.autopilot.armed
+
+
+def test_arm_and_takeoff_fails_at_once_when_the_mode_is_taken_away(scenario):
+    """The operator's ground station switches to RTL mid-climb: the climb is not ours any more."""
+    import dataclasses
+
+    from sitl.vehicle.setup import GroundStationEvent
+
+    at_s = 48.0  # ready to arm at 40 s; climbing to 60 m at 2.5 m/s lasts well past this
+    taken = dataclasses.replace(scenario, ground_station=(GroundStationEvent(at_s, "RTL"),))
+    v = InProcessVehicle(taken, seed=7)
+    runner = runner_for(v, "ArmAndTakeoff: {altitude_m: 60}")
+    assert v.fly(runner, at_s - 0.5) == Status.RUNNING
+    assert v.link.state.airborne and v.link.state.mode == "GUIDED"
+    assert v.fly(runner, 2.0) == Status.FAILURE
+    assert v.sim.time_s < at_s + 1.5  # the next heartbeat or two, not the disarm a minute later
+    assert "mode taken away (RTL)" in runner.tree.root.feedback_message
+    assert v.sim.autopilot.mode == "RTL" and v.sim.autopilot.armed  # RTL left in charge

@@ -94,3 +94,33 @@ def test_run_flies_the_simulator_over_tcp_to_a_landing(signed, tmp_path):
     finally:
         sim.terminate()
         sim.wait(timeout=10)
+
+
+@pytest.mark.parametrize("tree", ["patrol.yaml", "patrol.xml"])
+def test_a_patrol_whose_take_off_fails_fails_and_never_reports_success(tree):
+    """The false success seen against ArduCopter: the square failed on the ground, the fallback
+    swallowed it, and RTL on the disarmed vehicle said "landed and disarmed". Here the vehicle has
+    its position but its pre-arm checks never pass, so the arm fails."""
+    import dataclasses
+
+    from chaser_bt.vehicle import LinkConfig
+    from sitl.vehicle.setup import BootParams
+    from sitl.world.scenario import load_scenario
+
+    never_ready = dataclasses.replace(load_scenario(SCENARIO), boot=BootParams(5.0, 25.0, 1e9))
+    report = rehearse(ROOT / "trees" / tree, never_ready, seed=1,
+                      link_config=LinkConfig(target_sysid=1, ready_timeout_s=30.0))  # 1: the simulator's SYSID_THISMAV
+    # The root failed (the bench's "error"); the last node to answer was the fallback's "in the air?".
+    assert report.outcome == "error" and report.max_alt_m < 1.0
+    assert report.message.startswith("Airborne"), report.message
+
+
+def test_a_patrol_cut_short_by_the_battery_still_flies_home(tmp_path):
+    """What the fallback is there for: the battery guard halts the square and RTL lands at home."""
+    scenario = yaml.safe_load(SCENARIO.read_text())
+    scenario["params"] = {"BATT_CAPACITY": 700}  # 30 % left after 490 mAh, part-way round the square
+    path = tmp_path / "small_battery.yaml"
+    path.write_text(yaml.safe_dump(scenario))
+    report = rehearse(TREE, path, seed=1)
+    assert report.outcome == "landed", report.message
+    assert report.landed_dist_m < 3.0 and report.distance_flown_m < 390  # the square was cut short

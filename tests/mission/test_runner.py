@@ -174,3 +174,61 @@ def test_resources_cannot_replace_the_link_or_clock(vehicle, registry):
     tree = load_tree_text("version: 1\ntrees:\n  T:\n    AlwaysSuccess\n", source="<test>", registry=registry)
     with pytest.raises(ValueError, match="link"):
         MissionRunner(tree, vehicle.link, vehicle.clock, resources={"link": None})
+
+
+class FirstSight(py_trees.ports.BehaviourWithPorts):
+    """Remembers what the vehicle state and the link knew at its first tick."""
+
+    INPUT_PORTS = {"state": input_port(VehicleState, "vehicle state", default_key=VEHICLE_STATE_KEY)}
+    OUTPUT_PORTS: dict = {}
+    seen: dict = {}
+
+    def setup(self, **kwargs):
+        self.link = kwargs["link"]
+
+    def update(self):
+        if not FirstSight.seen:
+            s = self.get_input("state")
+            FirstSight.seen = {"battery": s.battery_remaining_pct, "mode": s.mode, "frame": self.link.frame,
+                               "position": s.position_enu.copy()}
+        return Status.SUCCESS
+
+
+def _fresh_vehicle(**boot) -> InProcessVehicle:
+    """A vehicle just booted, as `chaser-bt run` meets an ArduCopter started a moment ago."""
+    import dataclasses
+
+    from sitl.vehicle.setup import BootParams
+
+    scenario = load_scenario(SCENARIO)
+    if boot:
+        scenario = dataclasses.replace(scenario, boot=BootParams(**boot))
+    return InProcessVehicle(scenario, seed=11)
+
+
+def test_the_first_tick_waits_for_heartbeat_sys_status_and_a_position(registry):
+    registry.register(FirstSight)
+    FirstSight.seen = {}
+    v = _fresh_vehicle()
+    r = runner(v, registry, "FirstSight")
+    assert len(r.waiting_for()) == 4  # nothing heard yet
+    result = r.run(idle=v.sim.step)
+    assert result.status is RunStatus.SUCCESS and r.ticks == 1
+    seen = FirstSight.seen
+    # The patrol scenario's battery is full and its GPS fix (hence home) comes 5 s after boot.
+    assert seen["battery"] == pytest.approx(100.0, abs=1.0) and seen["mode"] != ""
+    assert seen["frame"] is not None and np.all(np.isfinite(seen["position"]))
+    assert np.linalg.norm(seen["position"][:2]) < 1.0 and v.sim.time_s >= 5.0
+
+
+def test_a_vehicle_that_never_sets_home_ends_the_run_naming_what_is_missing(registry):
+    registry.register(FirstSight)
+    FirstSight.seen = {}
+    v = _fresh_vehicle(gps_fix_s=1e9, ekf_ready_s=1e9, prearm_ok_s=1e9)  # no GPS fix: no home
+    tree = load_tree_text("version: 1\ntrees:\n  T:\n    FirstSight\n", source="<test>", registry=registry)
+    r = MissionRunner(tree, v.link, v.clock, telemetry_timeout_s=8.0)
+    result = r.run(idle=v.sim.step)
+    assert result.status is RunStatus.ERROR and r.ticks == 0 and FirstSight.seen == {}
+    assert "no HOME_POSITION" in result.message and "within 8 s" in result.message
+    assert "SYS_STATUS" not in result.message  # what did arrive is not blamed
+    assert 8.0 <= v.sim.time_s < 8.5

@@ -1,0 +1,54 @@
+"""Which resources a tree's leaves require, read from the tree before anything flies."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from chaser_bt.mission.flight_sensors import FlightSensorError, FlightSensorOptions, check_sensors
+from chaser_bt.mission.resources import MissingResources, missing_resources, required_resources
+from chaser_bt.mission.runner import MissionRunner
+from chaser_bt.tree import load_tree, load_tree_text
+
+TREES = Path(__file__).resolve().parents[2] / "trees"
+
+
+def _tree(body: str):
+    return load_tree_text(f"version: 1\ntrees:\n  T:\n    {body}\n", source="<test>")
+
+
+def test_required_resources_lists_each_leaf_that_needs_one_in_tree_order():
+    tree = _tree("Sequence: {children: [RadarTrackValidated: {name: track}, VisionPipeline: {name: eye}, "
+                 "RadarCue: {name: cue}, GoTo: {waypoint: [0, 0, 10]}]}")
+    assert required_resources(tree.root) == {"radar": ["track", "cue"], "camera": ["eye"]}
+
+
+def test_the_shipped_trees_require_what_their_docs_say():
+    assert required_resources(load_tree(TREES / "patrol.yaml").root) == {}
+    chase = required_resources(load_tree(TREES / "chase.yaml").root)
+    assert set(chase) == {"radar", "camera"}
+    assert set(required_resources(load_tree(TREES / "sar.yaml").root)) == {"camera"}
+
+
+def test_missing_resources_names_the_resource_its_nodes_and_how_to_give_it():
+    tree = _tree("Sequence: {children: [RadarTrackValidated: {name: track}, VisionPipeline: {name: eye}]}")
+    assert missing_resources(tree.root, {"radar", "camera"}) is None
+    err = missing_resources(tree.root, {"camera"}, how={"radar": "--radar HOST:PORT"}, what="tree T")
+    assert isinstance(err, MissingResources) and err.missing == {"radar": ["track"]}
+    assert str(err) == "tree T needs a radar (needed by track): give --radar HOST:PORT"
+
+
+def test_check_sensors_counts_only_what_the_operator_named():
+    chase = load_tree(TREES / "chase.yaml")
+    with pytest.raises(FlightSensorError, match="--camera") as e:
+        check_sensors(chase, FlightSensorOptions(radar_listen="0.0.0.0:4950"))
+    assert "--radar" not in str(e.value)
+    check_sensors(chase, FlightSensorOptions(radar_listen="0.0.0.0:4950", camera="0"))  # nothing missing
+
+
+def test_the_runner_refuses_to_set_up_a_tree_missing_a_resource():
+    tree = _tree("VisionPipeline: {name: eye}")
+    runner = MissionRunner(tree, link=None, clock=None)  # type: ignore[arg-type]
+    with pytest.raises(MissingResources, match="needs a camera"):
+        runner.setup()
