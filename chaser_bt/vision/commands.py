@@ -14,7 +14,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from chaser_bt.cli_args import non_negative_float, non_negative_int, output_file, positive_float, positive_int, seed
+from chaser_bt.cli_args import (non_negative_float, non_negative_int, output_dir, output_file, positive_float,
+                                positive_int, seed)
 
 __all__ = ["add_command", "evaluate_folder"]
 
@@ -220,20 +221,30 @@ def add_command(subparsers) -> None:
     e.add_argument("--backend", choices=["auto", "torch", "onnx"], default="auto",
                    help="auto: ONNX when a current .onnx file is beside the weights (default), else torch")
     e.set_defaults(handler=_eval)
-    f = subparsers.add_parser("import-footage", help="a CVAT export (YOLO 1.1 or COCO 1.0, zip or folder) of your footage into "
-                                                     "train/ and val/ YOLO folders, split by contiguous chunks")
+    help_ = ("import a CVAT export (YOLO 1.1 or COCO 1.0, zip or folder) of your footage into train/ and val/ "
+             "YOLO folders, split by contiguous chunks")
+    f = subparsers.add_parser("import-footage", help=help_, description=help_)
     f.add_argument("export", help="CVAT export: zip or unpacked folder")
-    f.add_argument("--out", required=True, help="folder to write train/, val/ and import.json into")
-    f.add_argument("--prefix", default="", help="start of every written file's name: one per flight sharing --out")
-    f.add_argument("--video", default=None, help="take the frames from this video (export frame_NNNNNN = video frame N)")
-    f.add_argument("--video-start", type=int, default=0, help="video frame of the export's frame 0 (the task's start frame)")
-    f.add_argument("--video-step", type=int, default=1, help="video frames per export frame (the task's frame step)")
-    f.add_argument("--chunk", type=int, default=150, help="consecutive frames per chunk of the split (150 = 5 s at 30 frames/s)")
-    f.add_argument("--val-frac", type=float, default=0.2, help="share of chunks held out for validation")
-    f.add_argument("--seed", type=int, default=0, help="which chunks are held out")
-    f.add_argument("--classes", nargs="+", default=None, help="output classes in id order (the detector's, e.g. s1000 phantom); "
-                                                              "default: the export's labels")
-    f.add_argument("--rename", nargs="+", default=None, metavar="LABEL=CLASS", help="export label to class, e.g. drone=s1000")
-    f.add_argument("--min-box-px", type=float, default=1.0, help="drop boxes narrower or lower than this once clipped")
-    f.add_argument("--preview", type=int, default=0, help="write the first N frames with their boxes drawn to OUT/preview/")
+    f.add_argument("--out", required=True, type=output_dir, metavar="DIR",
+                   help="folder to write train/, val/ and import.json into (required)")
+    f.add_argument("--prefix", default="", help="start of every written file's name, one per flight sharing --out (default: none)")
+    f.add_argument("--video", default=None, metavar="FILE",
+                   help="take the frames from this video: export frame_NNNNNN = video frame N (default: the export's images)")
+    f.add_argument("--video-start", type=non_negative_int, default=0, metavar="N",
+                   help="video frame of the export's frame 0, the task's start frame (default 0)")
+    f.add_argument("--video-step", type=positive_int, default=1, metavar="N",
+                   help="video frames per export frame, the task's frame step (default 1)")
+    f.add_argument("--chunk", type=positive_int, default=150, metavar="N",
+                   help="consecutive frames per chunk of the split (default 150: 5 s at 30 frames/s)")
+    f.add_argument("--val-frac", type=non_negative_float, default=0.2, metavar="F",
+                   help="share of chunks held out for validation, 0..1 (default 0.2)")
+    f.add_argument("--seed", type=seed, default=0, metavar="N", help="which chunks are held out (default 0)")
+    f.add_argument("--classes", nargs="+", default=None,
+                   help="output classes in id order, the detector's, e.g. s1000 phantom (default: the export's labels)")
+    f.add_argument("--rename", nargs="+", default=None, metavar="LABEL=CLASS",
+                   help="export label to class, e.g. drone=s1000 (default: none)")
+    f.add_argument("--min-box-px", type=non_negative_float, default=1.0, metavar="PX",
+                   help="drop boxes narrower or lower than this once clipped, pixels (default 1)")
+    f.add_argument("--preview", type=non_negative_int, default=0, metavar="N",
+                   help="write the first N frames with their boxes drawn to OUT/preview/ (default 0: none)")
     f.set_defaults(handler=_import_footage)

@@ -172,9 +172,11 @@ def make_refiner_set(images: Sequence[np.ndarray], boxes: Sequence[np.ndarray], 
 
 
 def train_refiner(crops: np.ndarray, given: np.ndarray, targets: np.ndarray, out_path: str | Path, config: RefinerConfig = RefinerConfig(),
-                  steps: int = 3000, batch: int = 128, lr: float = 2e-3, seed: int = 0, progress=sys.stderr) -> Path:
+                  steps: int = 3000, batch: int = 128, lr: float = 2e-3, seed: int = 0, progress="stderr") -> Path:
     """Fit :class:`BoxRefinerNet` (smooth L1 on the box fractions, horizontal flips, AdamW with a cosine decay)
     and save ``{"config", "state_dict"}`` (fp16) to ``out_path``."""
+    if progress == "stderr":  # the stream at call time, not at import (a test runner swaps it)
+        progress = sys.stderr
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     net = BoxRefinerNet(config)

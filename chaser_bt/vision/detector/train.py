@@ -116,8 +116,10 @@ class TrainingInterrupted(KeyboardInterrupt):
         self.checkpoint, self.step = checkpoint, step
 
 
-def train_detector(cfg: TrainConfig, resume: bool = True, progress=sys.stderr) -> Path:
+def train_detector(cfg: TrainConfig, resume: bool = True, progress="stderr") -> Path:
     """Train and save ``{"config", "state_dict", "step"}`` to ``cfg.out_path``; resumes from ``<out>.ckpt``."""
+    if progress == "stderr":  # the stream at call time, not at import (a test runner swaps it)
+        progress = sys.stderr
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
