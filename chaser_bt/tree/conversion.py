@@ -13,15 +13,24 @@ A SubTree's literal remapping is typed by the ports that read that key inside th
 they agree on one type). Literals of unknown nodes or ports are copied as they are; validating
 the result reports them. :func:`convert_text` then reads its own output back and checks that
 every tree, node, port and value is unchanged, and raises instead of writing anything lossy.
+
+A file written to another folder names the same included files: relative include paths are
+rewritten to start from the output's folder (:func:`rebased_include`). Comments are not carried
+over (neither parser keeps them); :func:`comment_lines` counts what a conversion leaves behind.
 """
 
 from __future__ import annotations
 
 import copy
 import enum
+import os
+import re
+import xml.parsers.expat
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
+
+import yaml
 
 from chaser_bt.tree.documents import format_of, merge_includes, parse_document
 from chaser_bt.tree.errors import Problem, TreeError
@@ -32,7 +41,10 @@ from chaser_bt.tree.validation import typed_literal
 from chaser_bt.tree.xml_format import XmlWriteError, dump_xml
 from chaser_bt.tree.yaml_format import dump_yaml
 
-__all__ = ["typed_document", "textual_document", "write_document", "convert_text", "convert_file"]
+__all__ = [
+    "typed_document", "textual_document", "write_document", "convert_text", "converted_file", "convert_file",
+    "rebased_include", "comment_lines",
+]
 
 _Transform = Callable[[Any, Any, bool], Any]
 
@@ -69,12 +81,13 @@ def write_document(document: TreeDocument, fmt: str, registry: Registry, context
 
 def convert_text(
     text: str, source: str, target: str, registry: Registry | None = None, source_format: str | None = None,
-    base_dir: Path | None = None,
+    base_dir: Path | None = None, out_dir: Path | None = None,
 ) -> str:
     """Convert tree text to the ``target`` format, checking that it reads back unchanged.
 
     Includes stay includes; with ``base_dir`` (where relative include paths start) the subtrees they
-    define give their ports' types, so literals passed to them convert exactly.
+    define give their ports' types, so literals passed to them convert exactly. With ``out_dir``
+    too (the folder the output will be in) relative include paths are rewritten to start there.
 
     Raises:
         TreeError: the source does not parse, an include cannot be read, or a value cannot be carried
@@ -89,6 +102,10 @@ def convert_text(
         context, problems = merge_includes(document, base_dir)
         if problems:
             raise TreeError(problems)
+    if base_dir is not None and out_dir is not None:
+        document = copy.deepcopy(document)
+        for include in document.includes:
+            include.value = rebased_include(str(include.value), base_dir, out_dir)
     try:
         output = write_document(document, target, registry, context)
     except (XmlWriteError, LiteralError) as e:
@@ -103,15 +120,78 @@ def convert_text(
     return output
 
 
-def convert_file(source: str | Path, target: str | Path, registry: Registry | None = None) -> None:
-    """Convert tree file ``source`` into ``target``; formats by extension (``.xml`` = BT.CPP XML)."""
+def converted_file(source: str | Path, target: str | Path, registry: Registry | None = None) -> str:
+    """The text to write as ``target`` for tree file ``source``; formats by extension (``.xml`` = BT.CPP XML).
+
+    Relative include paths are rewritten for ``target``'s folder, so the output names the same files.
+
+    Raises:
+        TreeError: as :func:`convert_text`, or ``source`` cannot be read.
+    """
     source, target = Path(source), Path(target)
     try:
         text = source.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as e:
         raise TreeError([Problem(str(source), 1, 1, f"cannot read tree file: {getattr(e, 'strerror', None) or e}")])
-    output = convert_text(text, str(source), format_of(target), registry, format_of(source), base_dir=source.parent)
-    target.write_text(output, encoding="utf-8")
+    return convert_text(
+        text, str(source), format_of(target), registry, format_of(source), base_dir=source.parent, out_dir=target.parent
+    )
+
+
+def convert_file(source: str | Path, target: str | Path, registry: Registry | None = None) -> None:
+    """Convert tree file ``source`` into ``target`` (see :func:`converted_file`)."""
+    Path(target).write_text(converted_file(source, target, registry), encoding="utf-8")
+
+
+def rebased_include(path: str, from_dir: Path, to_dir: Path) -> str:
+    """Include ``path``, written in a file in ``from_dir``, as a file in ``to_dir`` names the same file.
+
+    Absolute paths, and paths between files in the same folder, stay as written; otherwise the result
+    is relative (``/``-separated) from ``to_dir``, or absolute where there is no relative path
+    (another Windows drive). Folders are compared resolved, as the operating system opens them.
+    """
+    start, end = os.path.realpath(from_dir), os.path.realpath(to_dir)
+    if Path(path).is_absolute() or start == end:
+        return path
+    included = os.path.realpath(os.path.join(start, path))
+    try:
+        return Path(os.path.relpath(included, end)).as_posix()
+    except ValueError:
+        return included
+
+
+def comment_lines(text: str, fmt: str) -> int:
+    """How many lines of tree text in ``fmt`` (``"yaml"`` or ``"xml"``) hold a comment.
+
+    Counted up to the first syntax error; a DOCTYPE stops the count (nothing is expanded).
+    """
+    lines: set[int] = set()
+    if fmt == "xml":
+        parser = xml.parsers.expat.ParserCreate()
+
+        def comment(data: str) -> None:
+            first = parser.CurrentLineNumber
+            lines.update(range(first, first + data.count("\n") + 1))
+
+        def doctype(*_: Any) -> None:
+            raise ValueError("DOCTYPE")
+
+        parser.CommentHandler = comment
+        parser.StartDoctypeDeclHandler = doctype
+        try:
+            parser.Parse(text, True)
+        except (xml.parsers.expat.ExpatError, ValueError):
+            pass
+        return len(lines)
+    end = 0  # comments lie between tokens: each '#' there starts one, to the end of its line
+    try:
+        for token in yaml.scan(text):
+            for match in re.finditer("#", text[end : token.start_mark.index]):
+                lines.add(text.count("\n", 0, end + match.start()))
+            end = max(end, token.end_mark.index)
+    except yaml.YAMLError:
+        pass
+    return len(lines)
 
 
 # ---------------------------------------------------------------------------------------- literals

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -159,7 +160,7 @@ def test_export_model_lists_every_registered_node_with_its_ports(tmp_path):
     parser = argparse.ArgumentParser()
     add_command(parser.add_subparsers())
     out = tmp_path / "model.xml"
-    args = parser.parse_args(["export-model", "-o", str(out), "--include-builtin"])
+    args = parser.parse_args(["export-model", "--out", str(out), "--include-builtin"])
     assert args.handler(args) == 0
     root = ET.parse(out).getroot()
     assert (root.tag, root.get("BTCPP_format")) == ("root", "4")
@@ -185,8 +186,9 @@ def test_export_model_leaves_out_btcpp_builtins_by_default(tmp_path):
     parser = argparse.ArgumentParser()
     add_command(parser.add_subparsers())
     out = tmp_path / "model.xml"
-    args = parser.parse_args(["export-model", "-o", str(out)])
-    assert args.handler(args) == 0
+    for option in ("-o", "--output", "--out"):  # -o and --output: the older names
+        args = parser.parse_args(["export-model", option, str(out)])
+        assert args.out == out and args.handler(args) == 0
     ids = {node.get("ID") for node in ET.parse(out).getroot().find("TreeNodesModel")}
     assert {"GoTo", "ArmAndTakeoff", "Wait"} <= ids  # ours, Wait included (BT.CPP's is Sleep)
     assert not ids & {"Sequence", "Fallback", "Timeout", "AlwaysSuccess", "SetBlackboard"}
@@ -213,7 +215,110 @@ def test_trees_that_include_subtree_files_convert_exactly(tmp_path):
     convert_file(trees / "chase.yaml", tmp_path / "chase.xml")
     xml_text = (tmp_path / "chase.xml").read_text()
     assert 'link_silence_s="3.0"' in xml_text and "subtrees/safety.xml" in xml_text
-    back = convert_text(xml_text, str(trees / "chase.xml"), "yaml", base_dir=trees)
+    assert '<include path="' + os.path.relpath(trees / "subtrees" / "safety.xml", tmp_path) + '"/>' in xml_text
+    back = convert_text(xml_text, str(tmp_path / "chase.xml"), "yaml", base_dir=tmp_path)
     assert "link_silence_s: 3.0" in back
     with pytest.raises(TreeError, match="does not survive conversion"):  # without the includes the types are unknown
         convert_text((trees / "chase.yaml").read_text(), "chase.yaml", "xml")
+
+
+# ---- includes, validation and comments when converting files
+
+
+def _convert_command(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser()
+    add_command(parser.add_subparsers())
+    args = parser.parse_args(["convert", *argv])
+    return args.handler(args)
+
+
+def test_an_include_is_rewritten_to_name_the_same_file_from_the_output_folder():
+    from chaser_bt.tree.conversion import rebased_include
+
+    assert rebased_include("subtrees/a.xml", Path("/m/trees"), Path("/m/out")) == "../trees/subtrees/a.xml"
+    assert rebased_include("../shared/b.yaml", Path("/m/trees"), Path("/m/trees/x/y")) == "../../../shared/b.yaml"
+    assert rebased_include("./a.xml", Path("/m/trees"), Path("/m/trees/")) == "./a.xml"  # same folder: as written
+    assert rebased_include("/opt/c.xml", Path("/m/trees"), Path("/m/out")) == "/opt/c.xml"
+
+
+def test_a_tree_with_nested_includes_converts_into_another_folder_and_loads_the_same(tmp_path, capsys):
+    from chaser_bt.tree import load_tree, render_tree, validate_tree
+
+    (tmp_path / "src" / "legs").mkdir(parents=True)
+    (tmp_path / "src" / "common").mkdir()
+    (tmp_path / "abs").mkdir()
+    land = tmp_path / "abs" / "land.yaml"
+    land.write_text("version: 1\ntrees:\n  GoHome:\n    RTL: {wait_landed: true}\n")
+    (tmp_path / "src" / "common" / "home.yaml").write_text("version: 1\ntrees:\n  Home:\n    Airborne\n")
+    (tmp_path / "src" / "legs" / "leg.xml").write_text(  # includes a file of its own, relative to itself
+        '<root BTCPP_format="4">\n  <include path="../common/home.yaml"/>\n'
+        '  <BehaviorTree ID="Leg">\n    <Sequence>\n      <GoTo waypoint="{wp}"/>\n      <SubTree ID="Home"/>\n'
+        "    </Sequence>\n  </BehaviorTree>\n</root>\n"
+    )
+    source = tmp_path / "src" / "main.yaml"
+    source.write_text(
+        f"version: 1\nmain: Main\nincludes: [legs/leg.xml, {land}]\ntrees:\n  Main:\n    Sequence:\n      children:\n"
+        "        - SubTree: {ID: Leg, wp: [100.0, 0.0, 20.0]}\n        - SubTree: {ID: GoHome}\n"
+    )
+    xml_out, yaml_out = tmp_path / "out" / "deep" / "main.xml", tmp_path / "out" / "main.yaml"
+    xml_out.parent.mkdir(parents=True)
+    assert _convert_command([str(source), str(xml_out)]) == 0
+    assert _convert_command([str(xml_out), str(yaml_out)]) == 0
+    xml_text = xml_out.read_text()
+    assert '<include path="../../src/legs/leg.xml"/>' in xml_text and f'<include path="{land}"/>' in xml_text
+    assert f"includes: [../src/legs/leg.xml, {land}]" in yaml_out.read_text()
+    assert validate_tree(xml_out) == validate_tree(yaml_out) == []
+    assert render_tree(load_tree(yaml_out)) == render_tree(load_tree(source))  # XML shows SubTree literals as text
+    assert "waypoint" in render_tree(load_tree(source)) and "Airborne" in render_tree(load_tree(source))
+
+
+def test_the_shipped_chase_converts_into_another_folder_and_loads_the_same(tmp_path, capsys):
+    from chaser_bt.tree import load_tree, render_tree, validate_tree
+
+    for i, (name, out_name) in enumerate((("chase.xml", "chase.yaml"), ("chase.xml", "chase.xml"), ("chase.yaml", "chase.yaml"))):
+        out = tmp_path / str(i) / out_name
+        out.parent.mkdir()
+        assert _convert_command([str(ROOT / "trees" / name), str(out)]) == 0
+        assert validate_tree(out) == []
+        if out.suffix == Path(name).suffix == ".xml":  # (YAML writes a SubTree enum literal by name: guided -> GUIDED)
+            assert render_tree(load_tree(out)) == render_tree(load_tree(ROOT / "trees" / name))
+
+
+def test_convert_reports_an_invalid_tree_as_validate_does(tmp_path, capsys):
+    from chaser_bt.cli import main
+
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("version: 1\ntrees:\n  T:\n    Sequence:\n      children:\n"
+                   "        - Airborne\n        - GoTo: {waypoint: [1, 2, 3], speed: 3}\n")
+    assert main(["validate", str(bad)]) == 2
+    validated = capsys.readouterr().err
+    assert _convert_command([str(bad), str(tmp_path / "bad.xml")]) == 2
+    assert capsys.readouterr().err == validated + f"chaser-bt: {bad}: not converted\n"
+    assert validated.startswith(f"{bad}:7:") and f"{bad}: 1 problem(s)" in validated
+    assert not (tmp_path / "bad.xml").exists()
+
+
+def test_comment_lines_counts_lines_holding_a_comment():
+    from chaser_bt.tree.conversion import comment_lines
+
+    # a '#' in a quoted string, in a block scalar or inside a plain scalar is not a comment
+    assert comment_lines('a: "x # y"  # one\nb: |\n  # text\n  more\n# two\nd: e#f\n', "yaml") == 2
+    # a two-line comment, then one beside an element; escaped text in an attribute is not one
+    assert comment_lines('<root>\n<!-- a\n b -->\n<x v="&lt;!-- no --&gt;"/><!--c--></root>', "xml") == 3
+    assert comment_lines((ROOT / "trees" / "patrol.yaml").read_text(), "yaml") == 9
+
+
+def test_convert_warns_of_lost_comments_and_rewrites_its_source_only_with_force(tmp_path, capsys):
+    source = tmp_path / "t.yaml"
+    text = "# take off\nversion: 1\ntrees:\n  T:\n    ArmAndTakeoff: {altitude_m: 20}  # metres\n"
+    source.write_text(text)
+    assert _convert_command([str(source), str(source)]) == 2
+    assert "is the source" in capsys.readouterr().err and source.read_text() == text
+    assert _convert_command([str(source), str(tmp_path / "t.xml")]) == 0
+    warning = f"chaser-bt: warning: {source}: 2 comment line(s) not carried over to {tmp_path / 't.xml'}\n"
+    assert capsys.readouterr().err == warning
+    assert _convert_command([str(source), str(tmp_path / "." / "t.yaml"), "--force"]) == 0
+    assert "2 comment line(s)" in capsys.readouterr().err
+    assert source.read_text() == "version: 1\ntrees:\n  T:\n    ArmAndTakeoff: {altitude_m: 20.0}\n"
+    assert _convert_command([str(tmp_path / "t.xml"), str(tmp_path / "u.yaml")]) == 0
+    assert capsys.readouterr().err == ""  # nothing to lose
