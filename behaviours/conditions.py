@@ -66,7 +66,7 @@ class BatteryAbove(_Condition):
     """Battery remaining is at least ``percent``; an unknown level counts as false (fail safe)."""
 
     INPUT_PORTS = {
-        "percent": input_port(float, "Minimum remaining capacity (%)"),
+        "percent": input_port(float, "Minimum remaining capacity (%)", minimum=0, maximum=100),
         "state": state_port(),
     }
     OUTPUT_PORTS: dict = {}

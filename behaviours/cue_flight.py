@@ -10,7 +10,6 @@
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping
 
 import numpy as np
 import py_trees
@@ -33,7 +32,7 @@ class CueFresh(VehicleBehaviour):
     NODE_KIND = NodeKind.CONDITION
     INPUT_PORTS = {
         "cue": input_port(TargetCue, "The target cue", required=False, default_key=CUE_KEY),
-        "max_age_s": input_port(float, "Older than this, the cue is lost (s)", default=2.0),
+        "max_age_s": input_port(float, "Older than this, the cue is lost (s)", default=2.0, minimum=0),
         "state": state_port(),
     }
     OUTPUT_PORTS: dict = {}
@@ -58,21 +57,16 @@ class FlyToCue(CommandingBehaviour):
 
     INPUT_PORTS = {
         "cue": input_port(TargetCue, "The target cue", required=False, default_key=CUE_KEY),
-        "standoff_m": input_port(float, "Stop this far short of the cue, horizontally (m)", default=30.0),
+        "standoff_m": input_port(float, "Stop this far short of the cue, horizontally (m)", default=30.0, minimum=0),
         "height_above_m": input_port(float, "Height of the goal above the cue (m)", default=25.0),
-        "min_alt_m": input_port(float, "Never lower than this above home (m)", default=20.0),
-        "max_age_s": input_port(float, "A cue older than this is lost (s)", default=2.0),
-        "retarget_m": input_port(float, "Re-send the goal when it moved this far (m)", default=5.0),
-        "resend_s": input_port(float, "Re-send the goal at least this often (s)", default=1.0),
-        "speed_mps": input_port(float, "Horizontal speed (m/s); 0 keeps the vehicle's WPNAV_SPEED", default=0.0),
+        "min_alt_m": input_port(float, "Never lower than this above home (m)", default=20.0, minimum=0),
+        "max_age_s": input_port(float, "A cue older than this is lost (s)", default=2.0, minimum=0),
+        "retarget_m": input_port(float, "Re-send the goal when it moved this far (m)", default=5.0, minimum=0),
+        "resend_s": input_port(float, "Re-send the goal at least this often (s)", default=1.0, minimum=0),
+        "speed_mps": input_port(float, "Horizontal speed (m/s); 0 keeps the vehicle's WPNAV_SPEED", default=0.0, minimum=0),
         "state": state_port(),
     }
     OUTPUT_PORTS: dict = {}
-
-    @classmethod
-    def check_ports(cls, values: Mapping[str, Any], child_count: int) -> list[tuple[str, str]]:
-        return [(port, f"{port} must be >= 0, got {values[port]}") for port in ("standoff_m", "retarget_m", "resend_s")
-                if isinstance(values.get(port), float) and not values[port] >= 0.0]
 
     def initialise(self) -> None:
         self._sent_goal: np.ndarray | None = None

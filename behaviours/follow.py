@@ -53,8 +53,8 @@ class TargetTelemetryCue(VehicleBehaviour):
 
     NODE_KIND = NodeKind.ACTION
     INPUT_PORTS = {
-        "sysid": input_port(int, "Target's MAVLink system id (0 = whichever foreign system spoke last)", default=0),
-        "max_age_s": input_port(float, "A position older than this is no cue (s)", default=2.0),
+        "sysid": input_port(int, "Target's MAVLink system id (0 = whichever foreign system spoke last)", default=0, minimum=0, maximum=255),
+        "max_age_s": input_port(float, "A position older than this is no cue (s)", default=2.0, minimum=0),
         "state": state_port(),
     }
     OUTPUT_PORTS = {"cue": output_port(TargetCue, "The target's position", default_key=TELEMETRY_KEY)}
@@ -79,16 +79,16 @@ class _Follow(CommandingBehaviour):
     """Shared by the follow leaves: mode switch, controller, one command per control step."""
 
     COMMON_PORTS = {
-        "slant_range_m": input_port(float, "Slant range set-point (m)", default=40.0),
-        "elevation_deg": input_port(float, "Elevation above the target set-point (deg)", default=40.0),
+        "slant_range_m": input_port(float, "Slant range set-point (m)", default=40.0, above=0),
+        "elevation_deg": input_port(float, "Elevation above the target set-point (deg)", default=40.0, minimum=-90, maximum=90),
         "output": input_port(FollowOutput, "alt_hold (RC override) or guided (velocity)", default=FollowOutput.ALT_HOLD),
         "use_roll": input_port(bool, "Roll loop: full horizontal control", default=False),
         "feed_forward": input_port(bool, "Feed the target's velocity forward", default=False),
-        "stale_after_s": input_port(float, "Hover when target data is older than this (s)", default=2.0),
-        "max_lean_deg": input_port(float, "Lean limit (deg) below the vehicle's ANGLE_MAX; 0 = ANGLE_MAX", default=0.0),
+        "stale_after_s": input_port(float, "Hover when target data is older than this (s)", default=2.0, minimum=0),
+        "max_lean_deg": input_port(float, "Lean limit (deg) below the vehicle's ANGLE_MAX; 0 = ANGLE_MAX", default=0.0, minimum=0, maximum=90),
         "measured_rates": input_port(bool, "Derivative terms from the target's measured velocity (else from the "
                                      "filtered process variables)", default=True),
-        "give_up_after_s": input_port(float, "FAILURE after this long stale (s); 0 = keep hovering", default=0.0),
+        "give_up_after_s": input_port(float, "FAILURE after this long stale (s); 0 = keep hovering", default=0.0, minimum=0),
         "state": state_port(),
     }
 
@@ -173,7 +173,7 @@ class CVFollow(_Follow):
         "range_cue": input_port(TargetCue, "Optional cue whose distance replaces the vision range (GPS range)",
                                 required=False, default_key=TELEMETRY_KEY),
         "range_smoothing_s": input_port(float, "Vision range low-pass time constant (s): keep the bearing, slow the "
-                                        "range; 0 = use the estimate as it is", default=0.0),
+                                        "range; 0 = use the estimate as it is", default=0.0, minimum=0),
         **_Follow.COMMON_PORTS,
     }
     OUTPUT_PORTS: dict = {}
@@ -202,8 +202,8 @@ class HoverOnStale(py_trees.ports.PortsMixin, py_trees.decorators.Decorator):
 
     INPUT_PORTS = {
         "target": input_port(TargetCue, "The data whose age is watched", required=False, default_key=ESTIMATE_KEY),
-        "max_age_s": input_port(float, "Stale after this long without new data (s)", default=2.0),
-        "give_up_after_s": input_port(float, "FAILURE after this long stale (s); 0 = never", default=0.0),
+        "max_age_s": input_port(float, "Stale after this long without new data (s)", default=2.0, minimum=0),
+        "give_up_after_s": input_port(float, "FAILURE after this long stale (s); 0 = never", default=0.0, minimum=0),
     }
     OUTPUT_PORTS: dict = {}
 

@@ -31,11 +31,11 @@ class GoTo(CommandingBehaviour):
     """
 
     INPUT_PORTS = {
-        "waypoint": input_port(list[float], "[east, north, up] m (frame enu) or [lat_deg, lon_deg, alt_m] (frame global)"),
+        "waypoint": input_port(list[float], "[east, north, up] m (frame enu) or [lat_deg, lon_deg, alt_m] (frame global)", length=3),
         "frame": input_port(WaypointFrame, "enu or global", default=WaypointFrame.ENU),
-        "acceptance_radius_m": input_port(float, "Arrived when this close to the waypoint (m)", default=2.0),
-        "speed_mps": input_port(float, "Horizontal speed (m/s); 0 keeps the vehicle's WPNAV_SPEED", default=0.0),
-        "resend_s": input_port(float, "Re-send the target this often (s)", default=1.0),
+        "acceptance_radius_m": input_port(float, "Arrived when this close to the waypoint (m)", default=2.0, minimum=0),
+        "speed_mps": input_port(float, "Horizontal speed (m/s); 0 keeps the vehicle's WPNAV_SPEED", default=0.0, minimum=0),
+        "resend_s": input_port(float, "Re-send the target this often (s)", default=1.0, minimum=0),
         "state": state_port(),
     }
     OUTPUT_PORTS: dict = {}
@@ -70,8 +70,10 @@ class GoTo(CommandingBehaviour):
 
     def _resolve_target(self) -> np.ndarray | None:
         waypoint = self.get_input("waypoint")
-        if len(waypoint) != 3:
-            self.feedback_message = f"waypoint needs 3 numbers, got {len(waypoint)}"
+        # A literal was checked by validate; a blackboard-wired value is checked here, before it flies.
+        problem = self.INPUT_PORTS["waypoint"].violation(waypoint)
+        if problem is not None:
+            self.feedback_message = f"waypoint {problem}"
             return None
         if self.get_input("frame") is WaypointFrame.ENU:
             return np.asarray(waypoint, dtype=float)

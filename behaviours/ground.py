@@ -37,12 +37,12 @@ class StreamToGround(VehicleBehaviour):
     NODE_KIND = NodeKind.ACTION
     INPUT_PORTS = {
         "host": input_port(str, "Ground station address", default="127.0.0.1"),
-        "port": input_port(int, "Ground station UDP port", default=14600),
-        "video_hz": input_port(float, "Video frames per second (0: no video)", default=5.0),
-        "jpeg_quality": input_port(int, "JPEG quality of the video (1-100)", default=70),
+        "port": input_port(int, "Ground station UDP port", default=14600, minimum=1, maximum=65535),
+        "video_hz": input_port(float, "Video frames per second (0: no video)", default=5.0, minimum=0),
+        "jpeg_quality": input_port(int, "JPEG quality of the video (1-100)", default=70, minimum=1, maximum=100),
         "key_file": input_port(str, "Sign every datagram with this key file (MAVLink signing's format; "
                                     "empty: unsigned)", default=""),
-        "link_id": input_port(int, "This sender's link id in the signatures (0-255)", default=0),
+        "link_id": input_port(int, "This sender's link id in the signatures (0-255)", default=0, minimum=0, maximum=255),
         "estimate": input_port(TargetEstimate, "The camera's target estimate", required=False,
                                default_key="/target/estimate"),
         "cue": input_port(TargetCue, "The radar cue (sent when there is no radar resource)", required=False,

@@ -19,7 +19,7 @@ class Hover(CommandingBehaviour):
     """
 
     INPUT_PORTS = {
-        "duration_s": input_port(float, "Hold this long (s); 0 = until halted", default=0.0),
+        "duration_s": input_port(float, "Hold this long (s); 0 = until halted", default=0.0, minimum=0),
         "state": state_port(),
     }
     OUTPUT_PORTS: dict = {}

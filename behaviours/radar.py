@@ -47,8 +47,8 @@ class RadarTrackValidated(_RadarBehaviour):
 
     NODE_KIND = NodeKind.CONDITION
     INPUT_PORTS = {
-        "min_confidence": input_port(float, "Radar track confidence that validates (0..1)", default=0.8),
-        "min_track_age_s": input_port(float, "The track must have lived this long (s)", default=1.0),
+        "min_confidence": input_port(float, "Radar track confidence that validates (0..1)", default=0.8, minimum=0, maximum=1),
+        "min_track_age_s": input_port(float, "The track must have lived this long (s)", default=1.0, minimum=0),
         "operator_confirmation": input_port(int, "Track id the operator confirmed", required=False,
                                             default_key=OPERATOR_CONFIRMATION_KEY),
         "state": state_port(),
@@ -89,7 +89,7 @@ class RadarCue(_RadarBehaviour):
     INPUT_PORTS = {
         "track": input_port(int, "Preferred track id (the validated one)", required=False,
                             default_key=VALIDATED_TRACK_KEY),
-        "max_age_s": input_port(float, "A cue older than this is lost (s)", default=2.0),
+        "max_age_s": input_port(float, "A cue older than this is lost (s)", default=2.0, minimum=0),
         "state": state_port(),
     }
     OUTPUT_PORTS = {"cue": output_port(TargetCue, "The intruder cue", default_key=CUE_KEY)}

@@ -46,19 +46,12 @@ class PilotGate(VehicleBehaviour):
 
     NODE_KIND = NodeKind.CONDITION
     INPUT_PORTS = {
-        "channel": input_port(int, "RC channel of the pilot's autonomy switch (1-16; 0 = no switch)", default=7),
-        "on_above_pwm": input_port(int, "The switch is on above this PWM (ArduPilot: high > 1800)", default=SWITCH_HIGH_PWM),
+        "channel": input_port(int, "RC channel of the pilot's autonomy switch (1-18; 0 = no switch)", default=7, minimum=0, maximum=18),
+        "on_above_pwm": input_port(int, "The switch is on above this PWM (ArduPilot: high > 1800)", default=SWITCH_HIGH_PWM, minimum=0),
         "state": state_port(),
     }
     OUTPUT_PORTS = {"enabled_since": output_port(float, "Mission time autonomy was last enabled",
                                                  default_key=ENABLED_SINCE_KEY)}
-
-    @classmethod
-    def check_ports(cls, values: Mapping[str, Any], child_count: int) -> list[tuple[str, str]]:
-        channel = values.get("channel")
-        if isinstance(channel, int) and not 0 <= channel <= 18:
-            return [("channel", f"channel must be an RC channel 1..18 (0 = no switch), got {channel}")]
-        return []
 
     def setup(self, **kwargs: Any) -> None:
         super().setup(**kwargs)
@@ -122,7 +115,7 @@ class LinkLost(VehicleBehaviour):
 
     NODE_KIND = NodeKind.CONDITION
     INPUT_PORTS = {
-        "max_silence_s": input_port(float, "Lost after this long without telemetry (s)", default=3.0),
+        "max_silence_s": input_port(float, "Lost after this long without telemetry (s)", default=3.0, minimum=0),
         "state": state_port(),
     }
     OUTPUT_PORTS: dict = {}
@@ -151,10 +144,10 @@ class GeofenceBreached(VehicleBehaviour):
 
     NODE_KIND = NodeKind.CONDITION
     INPUT_PORTS = {
-        "radius_m": input_port(float, "Cylinder radius around center_en (m); 0 = none", default=0.0),
-        "center_en": input_port(list[float], "Cylinder centre [east, north] (m)", default=[0.0, 0.0]),
+        "radius_m": input_port(float, "Cylinder radius around center_en (m); 0 = none", default=0.0, minimum=0),
+        "center_en": input_port(list[float], "Cylinder centre [east, north] (m)", default=[0.0, 0.0], length=2),
         "polygon_en": input_port(list[float], "Polygon [e1, n1, e2, n2, ...] (m); empty = none", default=[]),
-        "max_alt_m": input_port(float, "Ceiling above home (m); 0 = none", default=0.0),
+        "max_alt_m": input_port(float, "Ceiling above home (m); 0 = none", default=0.0, minimum=0),
         "state": state_port(),
     }
     OUTPUT_PORTS: dict = {}

@@ -50,12 +50,12 @@ class OperatorCue(VehicleBehaviour):
     NODE_KIND = NodeKind.ACTION
     INPUT_PORTS = {
         "position": input_port(list[float], "Last-known position: [east, north, up] m (frame enu) or "
-                                            "[lat_deg, lon_deg, alt_m above home] (frame global)"),
+                                            "[lat_deg, lon_deg, alt_m above home] (frame global)", length=3),
         "frame": input_port(WaypointFrame, "enu or global", default=WaypointFrame.ENU),
-        "sigma_m": input_port(float, "Horizontal 1-sigma uncertainty of the position (m)", default=50.0),
-        "sigma_up_m": input_port(float, "Vertical 1-sigma uncertainty (m)", default=2.0),
+        "sigma_m": input_port(float, "Horizontal 1-sigma uncertainty of the position (m)", default=50.0, minimum=0),
+        "sigma_up_m": input_port(float, "Vertical 1-sigma uncertainty (m)", default=2.0, minimum=0),
         "reached_m": input_port(float, "The cue is spent once the vehicle is this close horizontally (m); 0 = never",
-                                default=10.0),
+                                default=10.0, minimum=0),
         "state": state_port(),
     }
     OUTPUT_PORTS = {"cue": output_port(TargetCue, "The operator's cue", default_key=CUE_KEY)}
@@ -89,8 +89,10 @@ class OperatorCue(VehicleBehaviour):
 
     def _resolve(self) -> np.ndarray | None:
         position = self.get_input("position")
-        if len(position) != 3:
-            self.feedback_message = f"position needs 3 numbers, got {len(position)}"
+        # A literal was checked by validate; a blackboard-wired value is checked here, before it flies.
+        problem = self.INPUT_PORTS["position"].violation(position)
+        if problem is not None:
+            self.feedback_message = f"position {problem}"
             return None
         if self.get_input("frame") is WaypointFrame.ENU:
             return np.asarray(position, dtype=float)
@@ -113,15 +115,15 @@ class ReportFind(VehicleBehaviour):
     NODE_KIND = NodeKind.ACTION
     INPUT_PORTS = {
         "estimate": input_port(TargetEstimate, "The camera's person estimate", required=False, default_key=ESTIMATE_KEY),
-        "min_confidence": input_port(float, "Least estimate confidence used (0..1)", default=0.3),
-        "max_age_s": input_port(float, "Older estimates are not used (s)", default=0.5),
+        "min_confidence": input_port(float, "Least estimate confidence used (0..1)", default=0.3, minimum=0, maximum=1),
+        "max_age_s": input_port(float, "Older estimates are not used (s)", default=0.5, minimum=0),
         "plane_z_m": input_port(float, "ENU height of the box centre's plane (m; about half a person above ground)",
                                 default=0.5),
-        "max_range_m": input_port(float, "Farthest fix along the line of sight (m)", default=60.0),
-        "gate_m": input_port(float, "Fixes farther than this from their median do not agree (m)", default=10.0),
-        "min_fixes": input_port(int, "Agreeing fixes needed for a find", default=5),
+        "max_range_m": input_port(float, "Farthest fix along the line of sight (m)", default=60.0, minimum=0),
+        "gate_m": input_port(float, "Fixes farther than this from their median do not agree (m)", default=10.0, minimum=0),
+        "min_fixes": input_port(int, "Agreeing fixes needed for a find", default=5, minimum=1),
         "min_span_s": input_port(float, "The agreeing fixes must span this long (s): one false detection carried by "
-                                        "the trackers does not", default=2.0),
+                                        "the trackers does not", default=2.0, minimum=0),
         "state": state_port(),
     }
     OUTPUT_PORTS = {"find": output_port(Find, "The person's position, geodetic point and confidence", default_key=FIND_KEY)}
@@ -164,12 +166,12 @@ class LoiterOverFind(CommandingBehaviour):
 
     INPUT_PORTS = {
         "find": input_port(Find, "The find to hold over", required=False, default_key=FIND_KEY),
-        "height_m": input_port(float, "Holding height above home (m)", default=20.0),
+        "height_m": input_port(float, "Holding height above home (m)", default=20.0, above=0),
         "standoff_m": input_port(float, "Horizontal distance from the find, on the vehicle's side (m); 0 = above it",
-                                 default=0.0),
-        "duration_s": input_port(float, "Hold this long (s); 0 = until halted", default=0.0),
-        "retarget_m": input_port(float, "Move the station when the find moves this much (m)", default=2.0),
-        "resend_s": input_port(float, "Re-send the position target this often (s)", default=1.0),
+                                 default=0.0, minimum=0),
+        "duration_s": input_port(float, "Hold this long (s); 0 = until halted", default=0.0, minimum=0),
+        "retarget_m": input_port(float, "Move the station when the find moves this much (m)", default=2.0, minimum=0),
+        "resend_s": input_port(float, "Re-send the position target this often (s)", default=1.0, minimum=0),
         "state": state_port(),
     }
     OUTPUT_PORTS: dict = {}

@@ -32,16 +32,16 @@ class _BeliefSearch(CommandingBehaviour):
 
     INPUT_PORTS = {
         "cue": input_port(TargetCue, "Last target cue: the belief starts from it", default_key="/target/cue"),
-        "grid_center": input_port(list[float], "ENU centre of the search grid (the radar), m", default=[0.0, 0.0, 0.0]),
-        "half_width_m": input_port(float, "Grid half-width east and north (m)", default=400.0),
-        "z_max_m": input_port(float, "Grid top above the centre's floor (m)", default=200.0),
-        "spacing_m": input_port(float, "Grid spacing (m)", default=20.0),
-        "v_h_mps": input_port(float, "Target's expected horizontal speed (m/s)", default=10.0),
-        "v_v_mps": input_port(float, "Target's expected vertical speed (m/s)", default=5.0),
-        "max_range_m": input_port(float, "Camera detection range (m)", default=80.0),
-        "tilt_deg": input_port(float, "Camera mount tilt below forward (deg)", default=10.0),
-        "p_detect": input_port(float, "Detection probability inside the footprint", default=0.9),
-        "replan_s": input_port(float, "Re-plan at least this often (s)", default=2.0),
+        "grid_center": input_port(list[float], "ENU centre of the search grid (the radar), m", default=[0.0, 0.0, 0.0], length=3),
+        "half_width_m": input_port(float, "Grid half-width east and north (m)", default=400.0, above=0),
+        "z_max_m": input_port(float, "Grid top above the centre's floor (m)", default=200.0, minimum=0),
+        "spacing_m": input_port(float, "Grid spacing (m)", default=20.0, above=0),
+        "v_h_mps": input_port(float, "Target's expected horizontal speed (m/s)", default=10.0, minimum=0),
+        "v_v_mps": input_port(float, "Target's expected vertical speed (m/s)", default=5.0, minimum=0),
+        "max_range_m": input_port(float, "Camera detection range (m)", default=80.0, above=0),
+        "tilt_deg": input_port(float, "Camera mount tilt below forward (deg)", default=10.0, minimum=-90, maximum=90),
+        "p_detect": input_port(float, "Detection probability inside the footprint", default=0.9, minimum=0, maximum=1),
+        "replan_s": input_port(float, "Re-plan at least this often (s)", default=2.0, minimum=0),
         "state": state_port(),
     }
     OUTPUT_PORTS = {"belief": output_port(SearchSnapshot, "Belief, belief gain and set-point", default_key="/search/belief")}
@@ -92,10 +92,10 @@ class RHCSearch(_BeliefSearch):
 
     INPUT_PORTS = {
         **_BeliefSearch.INPUT_PORTS,
-        "horizon": input_port(int, "Moves per planned path (h)", default=5),
-        "gamma": input_port(float, "Discount factor", default=0.9),
-        "threshold": input_port(float, "Minimum path gain; below it go to the belief maximum", default=0.001),
-        "node_budget": input_port(int, "0: exact; N > 0: stop after N search nodes (approximate, anytime)", default=0),
+        "horizon": input_port(int, "Moves per planned path (h)", default=5, minimum=1),
+        "gamma": input_port(float, "Discount factor", default=0.9, minimum=0, maximum=1),
+        "threshold": input_port(float, "Minimum path gain; below it go to the belief maximum", default=0.001, minimum=0),
+        "node_budget": input_port(int, "0: exact; N > 0: stop after N search nodes (approximate, anytime)", default=0, minimum=0),
     }
 
     def setup(self, **kwargs: Any) -> None:

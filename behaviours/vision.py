@@ -68,7 +68,7 @@ class VisionPipeline(VehicleBehaviour):
     INPUT_PORTS = {
         "range_from_telemetry": input_port(bool, "Take range from the target's telemetry, not the box size", default=False),
         "telemetry": input_port(TargetCue, "Target's own position (telemetry cue)", required=False, default_key=TELEMETRY_KEY),
-        "max_telemetry_age_s": input_port(float, "Older telemetry is not used for range (s)", default=2.0),
+        "max_telemetry_age_s": input_port(float, "Older telemetry is not used for range (s)", default=2.0, minimum=0),
         "detector": input_port(DetectorChoice, "Shipped detector to run (tiny_yolo, person_yolo) or camera: the camera's own",
                                default=DetectorChoice.CAMERA),
         "weights": input_port(str, "Detector weights file to run instead of detector (a fine-tuned .pt; its .onnx copy "
@@ -77,9 +77,9 @@ class VisionPipeline(VehicleBehaviour):
         "target_on_ground": input_port(bool, "Target stands on flat ground: range where the bearing meets it", default=False),
         "cue": input_port(TargetCue, "Where the target should be (radar or telemetry): the detector looks there and "
                                      "tracks far from it are not the target", required=False),
-        "max_cue_age_s": input_port(float, "An older cue is not used (s)", default=2.0),
+        "max_cue_age_s": input_port(float, "An older cue is not used (s)", default=2.0, minimum=0),
         "detect_every": input_port(int, "Run the detector on every k-th frame, trackers between (0: the camera's setting)",
-                                   default=0),
+                                   default=0, minimum=0),
         "state": state_port(),
     }
     OUTPUT_PORTS = {"estimate": output_port(TargetEstimate, "Where the camera sees the target", default_key=ESTIMATE_KEY)}
@@ -153,8 +153,8 @@ class TargetInView(VehicleBehaviour):
     NODE_KIND = NodeKind.CONDITION
     INPUT_PORTS = {
         "estimate": input_port(TargetEstimate, "The camera's target estimate", required=False, default_key=ESTIMATE_KEY),
-        "max_age_s": input_port(float, "An estimate older than this is out of view (s)", default=0.5),
-        "min_confidence": input_port(float, "Least confidence that counts (0..1)", default=0.3),
+        "max_age_s": input_port(float, "An estimate older than this is out of view (s)", default=0.5, minimum=0),
+        "min_confidence": input_port(float, "Least confidence that counts (0..1)", default=0.3, minimum=0, maximum=1),
         "state": state_port(),
     }
     OUTPUT_PORTS: dict = {}

@@ -118,10 +118,11 @@ def render_node_reference(registry: Registry) -> str:
 
 
 def _port_note(port) -> str:
+    bounds = f" [{port.constraint}]" if isinstance(port, Port) and port.constraint else ""
     if isinstance(port, Port) and port.default_key:
-        return f" = {{{port.default_key}}}"
+        return f" = {{{port.default_key}}}{bounds}"
     if port.has_default:
         value = port.default_value
-        return f" = {getattr(value, 'name', value)}"
-    return "" if not port.required else " (required)"
+        return f" = {getattr(value, 'name', value)}{bounds}"
+    return bounds if not port.required else f" (required){bounds}"
 

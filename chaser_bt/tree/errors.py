@@ -42,5 +42,7 @@ class UnknownNode(KeyError):
         super().__init__(node_id)
 
     def __str__(self) -> str:
-        hint = f"did you mean {', '.join(self.suggestions)}? " if self.suggestions else ""
-        return f"unknown node '{self.node_id}'; {hint}known nodes: {', '.join(self.known)}"
+        # Close matches say more than the whole list (some 75 ids); the list is for a name like none of them.
+        if self.suggestions:
+            return f"unknown node '{self.node_id}'; did you mean {' or '.join(self.suggestions)}?"
+        return f"unknown node '{self.node_id}'; known nodes: {', '.join(self.known)}"

@@ -5,7 +5,8 @@ ID=...>`` per node, an ``<input_port>``/``<output_port>`` per port with ``name``
 and the description as text, and node metadata under ``<MetadataFields>``. Groot2 loads it to know
 our nodes and their ports, so it opens and edits chaser-bt trees (DESIGN §4; STYLE: the model is
 generated, never written by hand). Types are Python's names (``float``, ``list[float]``,
-``FlightMode``); a default blackboard key is written as BT.CPP's default remapping ``{@key}``.
+``FlightMode``); a default blackboard key is written as BT.CPP's default remapping ``{@key}``, and
+a port's bounds (``[>= 0]``) follow its description, the only place the format has for them.
 """
 
 from __future__ import annotations
@@ -52,7 +53,7 @@ def _node(node: NodeType) -> list[str]:
             default = _default(port)
             if default is not None:
                 attrs += f" default={_quote(default)}"
-            lines.append(f"      <{direction} {attrs}>{_escape(port.description or '')}</{direction}>")
+            lines.append(f"      <{direction} {attrs}>{_escape(_description(port))}</{direction}>")
     if node.description:
         lines += [
             "      <MetadataFields>",
@@ -73,6 +74,14 @@ def _default(port: Any) -> str | None:
         except LiteralError:
             return str(port.default_value)
     return None
+
+
+def _description(port: Any) -> str:
+    """The port's description, its bounds appended (``[>= 0]``): Groot2 shows the text, BT.CPP has no field for them."""
+    text = port.description or ""
+    if isinstance(port, Port) and port.constraint:
+        text = f"{text} [{port.constraint}]" if text else f"[{port.constraint}]"
+    return text
 
 
 def _escape(text: str) -> str:

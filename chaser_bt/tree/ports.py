@@ -10,6 +10,11 @@ A port's value in a tree is either a literal or a blackboard reference written `
 exactly as in BehaviorTree.CPP (``{@key}`` is the root blackboard from inside a subtree,
 ``{=}`` a key named like the port). Literal strings go through py_trees'
 ``convert_str_to_type`` so the YAML and the BT.CPP-XML loaders convert text the same way.
+
+A port may also bound its values (``minimum``, ``maximum``, ``above`` for a strict lower bound;
+on a list port, bounds apply to each item) and fix a list's ``length``. The validator checks every
+literal against them, so a tree that validates does not fail in the air on a negative duration or
+a two-number waypoint; a default must satisfy its own port's bounds.
 """
 
 from __future__ import annotations
@@ -50,15 +55,60 @@ _KEY = re.compile(rf"@?{_SEGMENT}(?:/{_SEGMENT})*")
 
 @dataclass(frozen=True)
 class Port(py_trees.ports.PortInformation):
-    """py_trees' PortInformation plus BT.CPP's default remapping.
+    """py_trees' PortInformation plus BT.CPP's default remapping and bounds on the values.
 
     Args:
         default_key: the blackboard key the port uses when a tree does not wire it, e.g.
             ``"/vehicle/state"``; absolute keys start with ``/``, others are relative to the
             subtree's blackboard scope.
+        minimum: the least value allowed (each item's, for a list port).
+        maximum: the greatest value allowed.
+        above: values must be strictly greater than this (an altitude: ``above=0``).
+        length: a list port's exact number of items (a 3-vector: ``length=3``).
     """
 
     default_key: str | None = None
+    minimum: float | None = None
+    maximum: float | None = None
+    above: float | None = None
+    length: int | None = None
+
+    @property
+    def constraint(self) -> str:
+        """The allowed values as a person reads them (``>= 0``, ``0..100``, ``3 items``), or ``""``."""
+        bounds = []
+        if self.minimum is not None and self.maximum is not None:
+            bounds.append(f"{_number(self.minimum)}..{_number(self.maximum)}")
+        else:
+            if self.minimum is not None:
+                bounds.append(f">= {_number(self.minimum)}")
+            if self.maximum is not None:
+                bounds.append(f"<= {_number(self.maximum)}")
+        if self.above is not None:
+            bounds.insert(0, f"> {_number(self.above)}")
+        text = " and ".join(bounds)
+        if self.length is not None:
+            return f"{self.length} items" + (f", each {text}" if text else "")
+        return text
+
+    def violation(self, value: Any) -> str | None:
+        """Why ``value`` (already of the port's type) breaks the port's bounds, or None when it keeps them."""
+        if isinstance(value, list):
+            if self.length is not None and len(value) != self.length:
+                return f"needs {self.constraint}, got {len(value)}: {value!r}"
+            items = value
+        else:
+            items = [value]
+        for item in items:
+            if not _is_number(item):
+                continue
+            if (
+                (self.minimum is not None and not item >= self.minimum)
+                or (self.maximum is not None and not item <= self.maximum)
+                or (self.above is not None and not item > self.above)
+            ):
+                return f"must be {self.constraint}, got {_number(item) if item is value else repr(value)}"
+        return None
 
     @property
     def satisfied_without_wiring(self) -> bool:
@@ -73,17 +123,44 @@ def input_port(
     default: Any = None,
     default_key: str | None = None,
     required: bool = True,
+    minimum: float | None = None,
+    maximum: float | None = None,
+    above: float | None = None,
+    length: int | None = None,
 ) -> Port:
-    """Declare an input port; a default is coerced like a tree literal (``[0, 0, 0]`` for ``list[float]``)."""
+    """Declare an input port; a default is coerced like a tree literal (``[0, 0, 0]`` for ``list[float]``).
+
+    ``minimum``, ``maximum``, ``above`` and ``length`` bound the port's values (see :class:`Port`).
+
+    Raises:
+        ValueError: the default breaks the port's own bounds.
+    """
     if default is not None:
         default = coerce_literal(default, data_type)
-    return Port(
+    port = Port(
         data_type=data_type,
         required=required,
         description=description,
         default_value=default,
         default_key=default_key,
+        minimum=minimum,
+        maximum=maximum,
+        above=above,
+        length=length,
     )
+    problem = port.violation(default) if default is not None else None
+    if problem is not None:
+        raise ValueError(f"default of port {description!r}: {problem}")
+    return port
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _number(value: float) -> str:
+    """``0`` rather than ``0.0``: bounds read as a person writes them."""
+    return str(int(value)) if float(value).is_integer() else str(value)
 
 
 def output_port(data_type: Any, description: str, *, default_key: str | None = None) -> Port:

@@ -69,9 +69,9 @@ class NodeType:
 
     @property
     def description(self) -> str:
-        """The first line of the class docstring."""
+        """The class docstring's summary: its first paragraph, on one line (a summary may wrap)."""
         doc = (self.cls.__doc__ or "").strip()
-        return doc.splitlines()[0] if doc else ""
+        return " ".join(line.strip() for line in doc.split("\n\n")[0].splitlines())
 
 
 def _kind_of(cls: type) -> NodeKind:

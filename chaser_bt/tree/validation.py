@@ -12,6 +12,7 @@ remaps (or all keys, with ``_autoremap: true``) reach the parent; ``{@key}`` is 
 
 from __future__ import annotations
 
+import difflib
 import enum
 import logging
 from collections.abc import Iterator
@@ -28,6 +29,7 @@ from chaser_bt.tree.model import MAX_DEPTH, POSTCONDITIONS, PRECONDITIONS, SUBTR
 from chaser_bt.tree.ports import (
     SAME_AS_PORT,
     LiteralError,
+    Port,
     coerce_literal,
     is_reference_text,
     literal_from_text,
@@ -332,7 +334,11 @@ class _Resolver:
         declaration = node_type.port(port)
         if declaration is None:
             names = node_type.port_names()
-            listed = f"its ports: {', '.join(names)}" if names else "it has no ports"
+            close = difflib.get_close_matches(port, names, n=2)
+            if close:
+                listed = f"did you mean {' or '.join(close)}?"
+            else:
+                listed = f"its ports: {', '.join(names)}" if names else "it has no ports"
             self.problem(arg.location, f"{spec.node_id} has no port '{port}'; {listed}")
             return
         is_output = port in node_type.output_ports
@@ -411,11 +417,16 @@ class _Resolver:
         from_text: bool = False,
     ) -> None:
         try:
-            resolved.literals[port] = typed_literal(value, declaration.data_type, from_text)
+            typed = typed_literal(value, declaration.data_type, from_text)
         except LiteralError as e:
             self.problem(location, f"port '{port}' of {spec.node_id}: {e}")
             return
-        resolved.wiring[port] = _show(resolved.literals[port])
+        violation = declaration.violation(typed) if isinstance(declaration, Port) else None
+        if violation is not None:
+            self.problem(location, f"port '{port}' of {spec.node_id} {violation}")
+            return
+        resolved.literals[port] = typed
+        resolved.wiring[port] = _show(typed)
 
     def unwired_ports(self, spec: NodeSpec, node_type: NodeType, scope: _Scope, resolved: ResolvedNode) -> None:
         for port in node_type.port_names():

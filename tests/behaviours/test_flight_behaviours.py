@@ -142,3 +142,17 @@ def test_arm_and_takeoff_fails_at_once_when_the_mode_is_taken_away(scenario):
     assert v.sim.time_s < at_s + 1.5  # the next heartbeat or two, not the disarm a minute later
     assert "mode taken away (RTL)" in runner.tree.root.feedback_message
     assert v.sim.autopilot.mode == "RTL" and v.sim.autopilot.armed  # RTL left in charge
+
+
+def test_goto_refuses_a_two_number_waypoint_from_the_blackboard_and_hovers(vehicle):
+    # validate cannot see a wired value; GoTo checks it against its port before sending anything.
+    take_off(vehicle, 12)
+    start = horizontal(vehicle.sim.truth.pos_enu)
+    body = (
+        "Sequence:\n  children:\n    - SetBlackboard: {output_key: wp, value: [20.0, 0.0]}\n"
+        "    - GoTo: {waypoint: '{wp}'}"
+    )
+    status, runner = fly(vehicle, body, timeout_s=10)
+    assert status == Status.FAILURE
+    assert "waypoint needs 3 items, got 2: [20.0, 0.0]" in runner.tip_message()
+    assert np.linalg.norm(horizontal(vehicle.sim.truth.pos_enu) - start) < 1.5

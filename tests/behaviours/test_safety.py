@@ -275,6 +275,6 @@ trees:
     problems = [str(p) for p in validate_tree_text(text, source="bad.yaml")]
     assert len(problems) == 4, problems
     assert "bad.yaml:6:" in problems[0] and "pairs of at least 3 vertices" in problems[0]
-    assert "bad.yaml:7:" in problems[1] and "expected >= 0" in problems[1]
-    assert "bad.yaml:8:" in problems[2] and "RC channel" in problems[2]
-    assert "bad.yaml:9:" in problems[3] and "standoff_m must be >= 0" in problems[3]
+    assert "bad.yaml:7:" in problems[1] and "'radius_m' of GeofenceBreached must be >= 0, got -5" in problems[1]
+    assert "bad.yaml:8:" in problems[2] and "'channel' of PilotGate must be 0..18, got 40" in problems[2]
+    assert "bad.yaml:9:" in problems[3] and "'standoff_m' of FlyToCue must be >= 0, got -1" in problems[3]

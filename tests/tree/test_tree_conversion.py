@@ -178,7 +178,8 @@ def test_export_model_lists_every_registered_node_with_its_ports(tmp_path):
     assert goto["waypoint"].get("default") is None
     assert goto["acceptance_radius_m"].get("default") == "2.0"
     assert goto["state"].get("default") == "{@vehicle/state}"
-    assert goto["acceptance_radius_m"].text == registry.get("GoTo").input_ports["acceptance_radius_m"].description
+    assert goto["acceptance_radius_m"].text == registry.get("GoTo").input_ports["acceptance_radius_m"].description + " [>= 0]"
+    assert goto["waypoint"].text.endswith(" [3 items]")
     assert nodes["Parallel"].find("input_port[@name='success_count']").get("default") == "-1"
 
 

@@ -94,11 +94,19 @@ def test_unknown_node_lists_known_ids_best_matches_first(registry):
         registry,
     )
     assert where(found) == [(7, 11)]
-    message = found[0].message
-    assert message.startswith("unknown node 'Targte'; did you mean Target?")
-    known = message.split("known nodes: ")[1].split(", ")
-    assert known[0] == "Target"
+    # A close match is named alone: the whole list would bury it.
+    assert found[0].message == "unknown node 'Targte'; did you mean Target?"
+
+
+def test_unknown_node_like_no_other_lists_the_known_nodes(registry):
+    found = problems("version: 1\ntrees:\n  T:\n    Xyzzy\n", registry)
+    known = found[0].message.split("known nodes: ")[1].split(", ")
     assert sorted(known) == registry.ids()
+
+
+def test_misspelt_port_is_answered_with_the_close_name(registry):
+    found = problems("version: 1\ntrees:\n  T:\n    Target: {altitude_m: 5, ofset_m: 1}\n", registry)
+    assert [p.message for p in found] == ["Target has no port 'ofset_m'; did you mean offset_m?"]
 
 
 def test_missing_required_port_is_reported_at_the_node(registry):
