@@ -20,6 +20,7 @@ a two-number waypoint; a default must satisfy its own port's bounds.
 from __future__ import annotations
 
 import enum
+import json
 import math
 import re
 import types
@@ -337,6 +338,8 @@ def literal_text(value: Any, data_type: Any) -> str:
             value = value.name
         text = yaml.safe_dump(value, default_flow_style=True, allow_unicode=True, width=math.inf)
         text = text.removesuffix("\n").removesuffix("\n...").strip()
+        if isinstance(value, str) and ("\n" in text or literal_from_text(text, data_type) != value):
+            text = json.dumps(value, ensure_ascii=False)  # a YAML double-quoted scalar keeps what plain text loses ("\xa0")
         if "\n" in text:
             raise LiteralError(f"{value!r} has no one-line text form")
         return text

@@ -7,7 +7,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from chaser_bt.tree.model import Location, NodeSpec, PortArg, TreeDocument, TreeSpec
-from chaser_bt.tree.ports import LiteralError, coerce_literal
+from chaser_bt.tree.ports import LiteralError, coerce_literal, literal_from_text, literal_text
 from chaser_bt.tree.yaml_format import dump_yaml, parse_yaml
 
 numbers = st.one_of(st.integers(-10**9, 10**9), st.floats(allow_nan=False, allow_infinity=False))
@@ -62,3 +62,9 @@ def test_writing_a_model_as_yaml_and_reading_it_back_gives_the_same_model(trees)
     again, problems = parse_yaml(dump_yaml(document), "t.yaml")
     assert problems == []
     assert again == document
+
+
+@pytest.mark.parametrize("text", ["\xa0", "x\xa0", " lead", "yes", "3", "a: b", "two\nlines", "é"])
+def test_a_string_on_an_any_typed_port_survives_its_text_form(text):
+    """Found by the YAML -> XML -> YAML property: PyYAML writes a non-breaking space bare, and it read back as ''."""
+    assert literal_from_text(literal_text(text, object), object) == text
