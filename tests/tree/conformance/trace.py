@@ -92,6 +92,21 @@ def show(value: Any) -> str:
     return f"<{type(value).__name__}>"
 
 
+def _tick(tree, n: int, events: list[str], lines: list[str]) -> bool:
+    """Tick the root once and append the tick's line and its events; False when it raised (BT.CPP
+    throws; the trace only says that it did)."""
+    try:
+        tree.root.tick_once()
+    except Exception:
+        lines.append(f"tick {n} exception")
+        lines.extend(f"  {e}" for e in events)
+        return False
+    lines.append(f"tick {n} {_NAMES[tree.root.status]}")
+    lines.extend(f"  {e}" for e in events)
+    events.clear()
+    return True
+
+
 def chaser_trace(path: Path) -> list[str]:
     """Tick the tree in ``path`` as the harness does and return the trace lines."""
     config = read_config(path.read_text(encoding="utf-8"))
@@ -107,15 +122,8 @@ def chaser_trace(path: Path) -> list[str]:
     for n in range(1, config.ticks + 1):
         if n > 1:
             clock.advance(config.period_ms / 1000.0)
-        try:
-            tree.root.tick_once()
-        except Exception:  # BT.CPP throws; the trace only says that it did
-            lines.append(f"tick {n} exception")
-            lines.extend(f"  {e}" for e in events)
+        if not _tick(tree, n, events, lines):
             return lines
-        lines.append(f"tick {n} {_NAMES[tree.root.status]}")
-        lines.extend(f"  {e}" for e in events)
-        events.clear()
         for key in config.keys:
             try:
                 value = show(py_trees.blackboard.Blackboard.get("/" + key))
@@ -189,13 +197,6 @@ def stub_trace(path: Path, registry: Registry, ticks: int = 5) -> list[str]:
     py_trees.trees.setup(tree.root, clock=ManualClock(0.0), events=events)
     lines: list[str] = []
     for n in range(1, ticks + 1):
-        try:
-            tree.root.tick_once()
-        except Exception:
-            lines.append(f"tick {n} exception")
-            lines.extend(f"  {e}" for e in events)
+        if not _tick(tree, n, events, lines):
             return lines
-        lines.append(f"tick {n} {_NAMES[tree.root.status]}")
-        lines.extend(f"  {e}" for e in events)
-        events.clear()
     return lines
