@@ -17,7 +17,7 @@ from chaser_bt.tree.ports import LiteralError, Port, literal_text, type_name
 from chaser_bt.tree.registry import NodeType, Registry
 from chaser_bt.tree.xml_format import FORMAT_VERSION
 
-__all__ = ["BTCPP_BUILTIN_NODES", "node_model_xml"]
+__all__ = ["BTCPP_BUILTIN_NODES", "node_model_xml", "default_text"]
 
 #: Nodes BehaviorTree.CPP itself registers. Groot2 knows them already and BT.CPP's
 #: ``writeTreeNodesModelXML`` leaves them out unless asked (``include_builtin``); so do we.
@@ -50,7 +50,7 @@ def _node(node: NodeType) -> list[str]:
     for direction, ports in (("input_port", node.input_ports), ("output_port", node.output_ports)):
         for name, port in ports.items():
             attrs = f"name={_quote(name)} type={_quote(type_name(port.data_type))}"
-            default = _default(port)
+            default = default_text(port)
             if default is not None:
                 attrs += f" default={_quote(default)}"
             lines.append(f"      <{direction} {attrs}>{_escape(_description(port))}</{direction}>")
@@ -64,7 +64,8 @@ def _node(node: NodeType) -> list[str]:
     return lines
 
 
-def _default(port: Any) -> str | None:
+def default_text(port: Any) -> str | None:
+    """A port's default as model text: its default remapping (``{key}``, ``{@key}``) or its default value; None: none."""
     if isinstance(port, Port) and port.default_key is not None:
         key = port.default_key
         return "{@" + key[1:] + "}" if key.startswith("/") else "{" + key + "}"

@@ -47,7 +47,7 @@ from chaser_bt.tree.model import (
     TreeSpec,
 )
 
-__all__ = ["FORMAT_VERSION", "parse_xml", "dump_xml", "XmlWriteError"]
+__all__ = ["FORMAT_VERSION", "parse_xml", "dump_xml", "XmlWriteError", "attributes_text"]
 
 #: The BTCPP_format this loader reads and writes.
 FORMAT_VERSION = "4"
@@ -341,13 +341,13 @@ def dump_xml(document: TreeDocument) -> str:
         root["main_tree_to_execute"] = document.main
     if document.inputs:
         root["mission_inputs"] = ";".join(str(arg.value) for arg in document.inputs)
-    lines = ['<?xml version="1.0" encoding="UTF-8"?>', f"<root{_attributes(root)}>"]
+    lines = ['<?xml version="1.0" encoding="UTF-8"?>', f"<root{attributes_text(root)}>"]
     for include in document.includes:
-        lines.append(f"  <include{_attributes({'path': str(include.value)})}/>")
+        lines.append(f"  <include{attributes_text({'path': str(include.value)})}/>")
     for tree_id, tree in document.trees.items():
         if tree.root is None:
             continue
-        lines.append(f"  <BehaviorTree{_attributes({'ID': tree_id})}>")
+        lines.append(f"  <BehaviorTree{attributes_text({'ID': tree_id})}>")
         _write_node(tree.root, 2, lines)
         lines.append("  </BehaviorTree>")
     lines.append("</root>")
@@ -369,15 +369,16 @@ def _write_node(node: NodeSpec, depth: int, lines: list[str]) -> None:
     if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.-]*", tag):
         raise XmlWriteError(f"node id {tag!r} is not an XML element name")
     if not node.children:
-        lines.append(f"{indent}<{tag}{_attributes(attrs)}/>")
+        lines.append(f"{indent}<{tag}{attributes_text(attrs)}/>")
         return
-    lines.append(f"{indent}<{tag}{_attributes(attrs)}>")
+    lines.append(f"{indent}<{tag}{attributes_text(attrs)}>")
     for child in node.children:
         _write_node(child, depth + 1, lines)
     lines.append(f"{indent}</{tag}>")
 
 
-def _attributes(attrs: dict[str, Any]) -> str:
+def attributes_text(attrs: dict[str, Any]) -> str:
+    """`` name="value"`` for each attribute, escaped as XML 1.0 needs (raises :class:`XmlWriteError` where it cannot)."""
     for name in attrs:
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.-]*", name):
             raise XmlWriteError(f"{name!r} is not an XML attribute name")

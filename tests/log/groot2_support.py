@@ -74,7 +74,7 @@ def ticked_bt(tree: MissionTree, *visitors: Any) -> py_trees.trees.BehaviourTree
 def models_json(reg: Registry) -> str:
     """The nodes BT.CPP does not have, for ``groot2_recorder --fulltree``: kind, ports with their defaults."""
     from chaser_bt.tree.node_model import BTCPP_BUILTIN_NODES
-    from chaser_bt.tree.node_model import _default as default_text
+    from chaser_bt.tree.node_model import default_text
 
     out = {}
     for node_id in reg.ids():

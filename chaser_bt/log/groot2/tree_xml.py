@@ -26,13 +26,13 @@ from chaser_bt.tree import MissionTree, Registry, default_registry
 from chaser_bt.tree.composites import ReactiveFallback, ReactiveSequence
 from chaser_bt.tree.conversion import textual_document
 from chaser_bt.tree.model import PRECONDITIONS, SUBTREE_ID, NodeSpec, TreeDocument, TreeSpec
-from chaser_bt.tree.node_model import _default as default_text
+from chaser_bt.tree.node_model import default_text
 from chaser_bt.tree.node_model import node_model_xml
 from chaser_bt.tree.ports import LiteralError, is_reference_text, literal_text
 from chaser_bt.tree.registry import NodeKind
 from chaser_bt.tree.validation import ResolvedNode
 from chaser_bt.tree.xml_format import FORMAT_VERSION
-from chaser_bt.tree.xml_format import _attributes as xml_attributes
+from chaser_bt.tree.xml_format import attributes_text as xml_attributes
 
 __all__ = ["MonitoredNode", "MonitoredTree", "describe_tree"]
 
