@@ -54,8 +54,8 @@ from sitl.bench.radar_trials import (
     to_recording,
 )
 from sitl.world.camera.frame_source import SimTarget, SimulatorFrameSource
-from sitl.world.camera.scene import GroundScene, make_ground
-from sitl.world.camera.world import WorldSpec, build_world
+from sitl.world.camera.scene import GroundScene
+from sitl.world.camera.world import PLAIN_FIELD_SEED, WorldSpec, build_world, plain_ground
 from sitl.world.radar.config import RadarConfig
 from sitl.world.targets import WaypointPath, circle_points
 
@@ -178,10 +178,9 @@ def shared_detector() -> Any:
     return Detector(threads=1)
 
 
-@functools.lru_cache(maxsize=1)
 def shared_ground() -> GroundScene:
-    """The rendered camera's procedural ground, made once per process (it takes a second or two)."""
-    return make_ground(7)
+    """The rendered camera's plain field, made once per process."""
+    return plain_ground(PLAIN_FIELD_SEED)
 
 
 class _SharedDetector:
@@ -219,11 +218,8 @@ class ScenarioFrameSource:
 
     def read(self, t: float) -> Frame | None:
         if self.source is None:
-            if self.world.family == "plain" and self.world.seed is None:
-                self.source = SimulatorFrameSource(self.simulator, self.camera, [], self.seed, ground=shared_ground())
-            else:
-                world = build_world(self.world, self.seed, self.camera.width_px, self.camera.height_px)
-                self.source = SimulatorFrameSource(self.simulator, self.camera, [], self.seed, world=world)
+            world = build_world(self.world, self.seed, self.camera.width_px, self.camera.height_px)
+            self.source = SimulatorFrameSource(self.simulator, self.camera, [], self.seed, world=world)
         now = float(self.simulator.time_s)
         shown = [k for k, (_, present) in enumerate(self.targets) if present(now)]
         self.source.targets = [self.targets[k][0] for k in shown]

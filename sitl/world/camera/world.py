@@ -26,7 +26,11 @@ from sitl.world.camera.lighting import Lighting
 from sitl.world.camera.scene import GroundScene, make_ground
 from sitl.world.camera.sky import Sky, make_sky
 
-__all__ = ["Family", "FAMILIES", "TRAINING_FAMILIES", "HELDOUT_FAMILIES", "WorldSpec", "CameraWorld", "build_world"]
+__all__ = ["Family", "FAMILIES", "TRAINING_FAMILIES", "HELDOUT_FAMILIES", "WorldSpec", "CameraWorld", "build_world",
+           "PLAIN_FIELD_SEED", "plain_ground"]
+
+#: The plain field every rehearsal flew over before camera worlds (``camera_world`` without a seed).
+PLAIN_FIELD_SEED = 7
 
 
 @dataclass(frozen=True)
@@ -120,10 +124,11 @@ class CameraWorld:
 
 
 def build_world(spec: WorldSpec, seed: int, width_px: int = 640, height_px: int = 480) -> CameraWorld:
-    """The world of ``spec`` laid out by ``spec.seed`` (or ``seed``); the plain world is the shared field."""
-    s = spec.seed if spec.seed is not None else seed
+    """The world of ``spec`` laid out by ``spec.seed`` (or ``seed``); the plain world without a seed of its
+    own is the one field of :data:`PLAIN_FIELD_SEED`, whatever the run's seed."""
     if spec.family == "plain":
-        return CameraWorld("plain", _plain_ground(s), Lighting())
+        return CameraWorld("plain", plain_ground(PLAIN_FIELD_SEED if spec.seed is None else spec.seed), Lighting())
+    s = spec.seed if spec.seed is not None else seed
     if spec.family not in FAMILIES:
         raise ValueError(f"camera world family {spec.family!r}: one of plain, {', '.join(FAMILIES)}")
     fam = FAMILIES[spec.family]
@@ -149,7 +154,8 @@ def build_world(spec: WorldSpec, seed: int, width_px: int = 640, height_px: int 
 
 
 @functools.lru_cache(maxsize=4)
-def _plain_ground(seed: int) -> GroundScene:
+def plain_ground(seed: int) -> GroundScene:
+    """The plain field of ``seed``, made once per process (it takes a second or two)."""
     return make_ground(seed)
 
 
