@@ -170,8 +170,8 @@ class CVFollow(_Follow):
 
     INPUT_PORTS = {
         "target": input_port(TargetEstimate, "Vision target estimate", required=False, default_key=ESTIMATE_KEY),
-        "range_cue": input_port(TargetCue, "Optional cue whose distance replaces the vision range (GPS range)",
-                                required=False, default_key=TELEMETRY_KEY),
+        "range_cue": input_port(TargetCue, "Optional cue whose distance replaces the vision range (remap it to "
+                                "{@target/telemetry} for the target's own GPS); unset: range from vision", required=False),
         "range_smoothing_s": input_port(float, "Vision range low-pass time constant (s): keep the bearing, slow the "
                                         "range; 0 = use the estimate as it is", default=0.0, minimum=0),
         **_Follow.COMMON_PORTS,

@@ -2,9 +2,9 @@
 
 :class:`VisionPipeline` ticks a :class:`chaser_bt.vision.pipeline.CameraSensor` handed to ``setup``
 as ``camera=`` (beside ``link`` and ``clock``): one frame per tick through detector, trackers and
-projection, and writes the :class:`~chaser_bt.cue.TargetEstimate` to ``/target/estimate``. With
-``range_from_telemetry`` it takes the range from the target's own position on
-``/target/telemetry`` (the paper's flights) instead of the box size. The tree picks the model:
+projection, and writes the :class:`~chaser_bt.cue.TargetEstimate` to ``/target/estimate``. The range
+comes from the box size unless ``range_cue`` is remapped to a fresh position of the target (its own
+telemetry, ``{@target/telemetry}``, in the paper's development flights). The tree picks the model:
 ``detector`` names a shipped detector (``tiny_yolo`` for the drones, ``person_yolo`` for search and
 rescue; ``camera`` keeps the one the camera resource was built with) or ``weights`` a weights file
 (a detector fine-tuned on your own footage: ``chaser-bt train-detector``), ``classes`` the class names
@@ -34,7 +34,6 @@ from chaser_bt.vision.pipeline import CameraSensor, OwnshipPose
 Status = py_trees.common.Status
 
 ESTIMATE_KEY = "/target/estimate"
-TELEMETRY_KEY = "/target/telemetry"
 
 
 class DetectorChoice(enum.Enum):
@@ -66,9 +65,10 @@ class VisionPipeline(VehicleBehaviour):
     NODE_KIND = NodeKind.ACTION
     REQUIRES_RESOURCES = ("camera",)  # checked before the flight (chaser_bt.mission.resources)
     INPUT_PORTS = {
-        "range_from_telemetry": input_port(bool, "Take range from the target's telemetry, not the box size", default=False),
-        "telemetry": input_port(TargetCue, "Target's own position (telemetry cue)", required=False, default_key=TELEMETRY_KEY),
-        "max_telemetry_age_s": input_port(float, "Older telemetry is not used for range (s)", default=2.0, minimum=0),
+        "range_cue": input_port(TargetCue, "A position of the target whose distance replaces the box-size range "
+                                           "(remap to {@target/telemetry} for its own GPS); unset: range from vision",
+                                required=False),
+        "max_range_cue_age_s": input_port(float, "An older range cue is not used (s)", default=2.0, minimum=0),
         "detector": input_port(DetectorChoice, "Shipped detector to run (tiny_yolo, person_yolo) or camera: the camera's own",
                                default=DetectorChoice.CAMERA),
         "weights": input_port(str, "Detector weights file to run instead of detector (a fine-tuned .pt; its .onnx copy "
@@ -128,11 +128,10 @@ class VisionPipeline(VehicleBehaviour):
             return Status.FAILURE
         now = self._now()
         known_range = None
-        if self.get_input("range_from_telemetry"):
-            tel = optional_input(self, "telemetry")
-            if tel is not None and tel.age(now) <= self.get_input("max_telemetry_age_s"):
-                cam = self.camera.pipeline.camera.position_enu(s.position_enu, s.attitude)
-                known_range = float(np.linalg.norm(tel.position_enu - cam))
+        ranged = optional_input(self, "range_cue")
+        if ranged is not None and ranged.age(now) <= self.get_input("max_range_cue_age_s"):
+            cam = self.camera.pipeline.camera.position_enu(s.position_enu, s.attitude)
+            known_range = float(np.linalg.norm(ranged.position_enu - cam))
         cue = optional_input(self, "cue")
         if cue is not None and cue.age(now) > self.get_input("max_cue_age_s"):
             cue = None

@@ -23,8 +23,8 @@ __all__ = ["BTCPP_BUILTIN_NODES", "node_model_xml", "default_text"]
 #: ``writeTreeNodesModelXML`` leaves them out unless asked (``include_builtin``); so do we.
 BTCPP_BUILTIN_NODES = frozenset({
     "AlwaysFailure", "AlwaysSuccess", "Script", "ScriptCondition", "SetBlackboard", "UnsetBlackboard", "Sleep",
-    "Sequence", "SequenceWithMemory", "ReactiveSequence", "Fallback", "ReactiveFallback", "Parallel", "ParallelAll",
-    "IfThenElse", "WhileDoElse", "Switch2", "Switch3", "Switch4", "Switch5", "Switch6",
+    "Sequence", "SequenceWithMemory", "SequenceStar", "AsyncSequence", "ReactiveSequence", "Fallback", "AsyncFallback",
+    "ReactiveFallback", "Parallel", "ParallelAll", "IfThenElse", "WhileDoElse", "TryCatch", "Precondition", "Switch2", "Switch3", "Switch4", "Switch5", "Switch6",
     "Inverter", "ForceSuccess", "ForceFailure", "Repeat", "RetryUntilSuccessful", "KeepRunningUntilFailure",
     "Timeout", "Delay", "RunOnce", "SubTree", "LoopInt", "LoopDouble", "LoopBool", "LoopString",
     "SkipUnlessUpdated", "WaitValueUpdate", "WasEntryUpdated",

@@ -34,7 +34,7 @@ from sitl.vehicle.setup import (
     PilotScript,
 )
 from sitl.world.camera.models import TARGET_MODELS
-from sitl.world.camera.world import FAMILIES, WorldSpec
+from sitl.world.camera.world import ANY_FAMILY, FAMILIES, WorldSpec
 from sitl.world.intruders import TRAJECTORY_KINDS, IntruderLimits, IntruderSpec
 from sitl.world.radar.config import RadarClutter, RadarConfig, RadarFailureRates
 from sitl.world.targets import CirclePath, StaticPoint, TargetPath, WaypointPath
@@ -224,8 +224,8 @@ class _Parser:
             return WorldSpec()
         m = self.mapping(d, "camera_world", ("family", "seed", "clutter", "distractors", "effects"))
         family = m.get("family", "plain")
-        if family != "plain" and family not in FAMILIES:
-            raise self.fail("camera_world.family", "one of plain, " + ", ".join(FAMILIES), family)
+        if family not in ("plain", ANY_FAMILY) and family not in FAMILIES:
+            raise self.fail("camera_world.family", f"one of plain, {ANY_FAMILY}, " + ", ".join(FAMILIES), family)
         seed = m.get("seed")
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
             raise self.fail("camera_world.seed", "an integer >= 0, or null for the run's seed", seed)

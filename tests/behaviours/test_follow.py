@@ -154,7 +154,9 @@ def test_follow_global_in_guided_with_velocity_targets(follower):
     assert -d[2] == pytest.approx(25.71, abs=2.0)
 
 
-def test_cv_follow_takes_bearing_from_vision_and_range_from_telemetry(follower):
+def _long_vision_range(follower):
+    """Telemetry written as the reader would, and a vision estimate with the true bearing and a range
+    40 % long, as box-size ranging is (paper section 5)."""
     write_tel, _ = _feed(follower)
 
     def write() -> None:
@@ -163,15 +165,28 @@ def test_cv_follow_takes_bearing_from_vision_and_range_from_telemetry(follower):
         cam = follower.link.state.position_enu
         rel = follower.sim.intruders[0].pos - cam
         rng = float(np.linalg.norm(rel))
-        # a vision range 40 % long, as box-size ranging is (paper section 5): telemetry range corrects it
         py_trees.blackboard.Blackboard.set("/target/estimate", TargetEstimate(
             t, cam + 1.4 * rel, bearing_enu=rel / rng, range_m=1.4 * rng, range_std_m=10.0, confidence=0.9,
             source="vision"))
-    runner = runner_for(follower, "CVFollow: {}")
-    _fly_for(follower, runner, 50.0, each=write)
+    return write
+
+
+def test_cv_follow_takes_bearing_from_vision_and_range_from_telemetry(follower):
+    runner = runner_for(follower, 'CVFollow: {range_cue: "{@target/telemetry}"}')
+    _fly_for(follower, runner, 50.0, each=_long_vision_range(follower))
     assert runner.status == Status.RUNNING, runner.tip_message()
     d = follower.sim.intruders[0].pos - follower.sim.truth.pos_enu
-    assert math.hypot(d[0], d[1]) == pytest.approx(30.64, abs=4.0)
+    assert math.hypot(d[0], d[1]) == pytest.approx(30.64, abs=4.0)  # the telemetry range corrects vision's
+
+
+def test_cv_follow_without_a_range_cue_trusts_vision_not_the_telemetry(follower):
+    """The telemetry is on the blackboard but not remapped: the follow holds the set-point on the
+    vision range, so the true distance is the set-point over 1.4 (30.64 / 1.4 = 21.9 m)."""
+    runner = runner_for(follower, "CVFollow: {}")
+    _fly_for(follower, runner, 50.0, each=_long_vision_range(follower))
+    assert runner.status == Status.RUNNING, runner.tip_message()
+    d = follower.sim.intruders[0].pos - follower.sim.truth.pos_enu
+    assert math.hypot(d[0], d[1]) == pytest.approx(30.64 / 1.4, abs=3.0)
 
 
 def test_target_telemetry_cue_writes_the_intruders_position(follower):

@@ -4,7 +4,9 @@ A *family* fixes the kind of place (its ground materials and clutter, its skies,
 its camera): ``meadow``, ``farmland``, ``arid``, ``winter`` and ``suburb`` are for training;
 ``coast`` and ``moor`` share no ground material, sky style or distractor look with them and are kept
 out of training, so a detector can be scored on a world it has never seen. ``plain`` is the
-original smooth procedural field (:func:`sitl.world.camera.scene.make_ground`) for quick tests.
+original smooth procedural field (:func:`sitl.world.camera.scene.make_ground`) for quick tests;
+``any`` draws one of the seven families from the seed (:func:`family_of`), so a campaign over seeds
+flies over every kind of place, the held-out ones included.
 
 A scenario names its world with the ``camera_world`` key (``sitl/scenarios/README.md``); a seed
 lays out the ground, picks the weather and places every distractor.
@@ -26,8 +28,8 @@ from sitl.world.camera.lighting import Lighting
 from sitl.world.camera.scene import GroundScene, make_ground
 from sitl.world.camera.sky import Sky, make_sky
 
-__all__ = ["Family", "FAMILIES", "TRAINING_FAMILIES", "HELDOUT_FAMILIES", "WorldSpec", "CameraWorld", "build_world",
-           "PLAIN_FIELD_SEED", "plain_ground"]
+__all__ = ["Family", "FAMILIES", "TRAINING_FAMILIES", "HELDOUT_FAMILIES", "ANY_FAMILY", "WorldSpec", "CameraWorld",
+           "build_world", "family_of", "PLAIN_FIELD_SEED", "plain_ground"]
 
 #: The plain field every rehearsal flew over before camera worlds (``camera_world`` without a seed).
 PLAIN_FIELD_SEED = 7
@@ -94,6 +96,7 @@ FAMILIES: dict[str, Family] = {
 }
 TRAINING_FAMILIES = ("meadow", "farmland", "arid", "winter", "suburb")
 HELDOUT_FAMILIES = ("coast", "moor")
+ANY_FAMILY = "any"  # a family drawn per seed: family_of
 
 
 @dataclass(frozen=True)
@@ -129,8 +132,10 @@ def build_world(spec: WorldSpec, seed: int, width_px: int = 640, height_px: int 
     if spec.family == "plain":
         return CameraWorld("plain", plain_ground(PLAIN_FIELD_SEED if spec.seed is None else spec.seed), Lighting())
     s = spec.seed if spec.seed is not None else seed
+    if spec.family == ANY_FAMILY:
+        spec = replace(spec, family=family_of(s))
     if spec.family not in FAMILIES:
-        raise ValueError(f"camera world family {spec.family!r}: one of plain, {', '.join(FAMILIES)}")
+        raise ValueError(f"camera world family {spec.family!r}: one of plain, {ANY_FAMILY}, {', '.join(FAMILIES)}")
     fam = FAMILIES[spec.family]
     rng = np.random.default_rng([s, 0xca3])
     sun_az = float(rng.uniform(0, 2 * math.pi))
@@ -151,6 +156,13 @@ def build_world(spec: WorldSpec, seed: int, width_px: int = 640, height_px: int 
     if spec.effects:
         world = replace(world, effects=replace(fam.effects, seed=int(rng.integers(2**31))))
     return world
+
+
+def family_of(seed: int) -> str:
+    """The family the ``any`` world takes for ``seed``: seed modulo seven, in :data:`FAMILIES` order, so
+    any seven consecutive seeds visit every family once."""
+    names = tuple(FAMILIES)
+    return names[seed % len(names)]
 
 
 @functools.lru_cache(maxsize=4)

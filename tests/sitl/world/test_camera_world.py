@@ -15,7 +15,8 @@ from sitl.world.camera.distractors import Bird
 from sitl.world.camera.effects import CameraEffects, vignette_map
 from sitl.world.camera.materials import MATERIALS, periodic_fractal_noise
 from sitl.world.camera.renderer import Renderer, TargetPose, attitude_from_velocity
-from sitl.world.camera.world import FAMILIES, HELDOUT_FAMILIES, TRAINING_FAMILIES, CameraWorld, WorldSpec, build_world
+from sitl.world.camera.world import (ANY_FAMILY, FAMILIES, HELDOUT_FAMILIES, TRAINING_FAMILIES, CameraWorld, WorldSpec,
+                                     build_world, family_of)
 from sitl.world.scenario import Scenario, ScenarioError
 
 CAM = CameraModel(width_px=320, height_px=240)
@@ -159,6 +160,17 @@ def test_scenario_chooses_the_camera_world_and_names_bad_keys():
                        ({"effects": "yes"}, "camera_world.effects"), ({"sky": 1}, "camera_world")):
         with pytest.raises(ScenarioError, match=where.replace(".", r"\.")):
             Scenario.from_dict({**base, "camera_world": bad})
+
+
+def test_the_any_world_visits_every_family_and_is_that_familys_world():
+    assert sorted(family_of(s) for s in range(10, 17)) == sorted(FAMILIES)  # any seven consecutive seeds
+    for seed in (5, 9):
+        drawn = build_world(WorldSpec(ANY_FAMILY), seed=seed, width_px=CAM.width_px, height_px=CAM.height_px)
+        named = build_world(WorldSpec(family_of(seed)), seed=seed, width_px=CAM.width_px, height_px=CAM.height_px)
+        assert drawn.name == family_of(seed)
+        assert np.array_equal(_frame(drawn).image, _frame(named).image)
+    base = {"name": "w", "home": {"lat_deg": 42.0, "lon_deg": -71.0}}
+    assert Scenario.from_dict({**base, "camera_world": {"family": "any"}}).camera_world == WorldSpec(ANY_FAMILY)
 
 
 def test_parts_of_a_world_can_be_left_out():
