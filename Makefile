@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/chaser-bt rehearse trees/chase.yaml --scenario sitl/scenarios/chase.yaml --seed 1 --report out/demo
+	$(BIN)/chaser-bt rehearse trees/chase.yaml --scenario sitl/scenarios/chase.yaml --seed 1 --report out/demo --progress always
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

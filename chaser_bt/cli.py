@@ -157,6 +157,8 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     p.add_argument("--trace", type=arg.output_file, metavar="FILE.npz", help="write the flight's per-tick trace (FlightTrace) here (default: none)")
     p.add_argument("--report", type=arg.output_dir, metavar="DIR",
                    help="write the report there too: report.json, report.md, the trace and the paper's figures (default: none)")
+    p.add_argument("--progress", choices=("auto", "always", "never"), default="auto",
+                   help="a progress bar on stderr: simulated time, phase, real-time factor (default auto: on a terminal)")
     add_recording_arguments(p)
     add_groot2_arguments(p)
 
@@ -330,13 +332,21 @@ def _rehearse(args: argparse.Namespace) -> int:
                             camera_size=args.camera_size, telemetry=not args.no_telemetry)
     hook = _recording_hook(args)
     monitor = _groot2_monitor(args, tree)
+    bar = None
+    if args.progress != "never" and not args.show_ticks:
+        from sitl.bench.rehearsal_progress import RehearsalProgress
+
+        bar = RehearsalProgress(scenario.time_limit_s, sys.stderr, always=args.progress == "always")
     interrupted = False
     try:
         report = rehearse(tree, scenario, args.seed, rate_hz=args.rate_hz, on_tick=on_tick, sensors=sensors,
-                          on_start=start_hook(monitor, hook), trace=args.trace is not None or args.report is not None)
+                          on_start=start_hook(monitor, hook), trace=args.trace is not None or args.report is not None,
+                          progress=bar)
     except RehearsalInterrupted as stop:  # Ctrl-C or SIGTERM: the partial report, then exit 130
         report, interrupted = stop.report, True
     finally:
+        if bar is not None:
+            bar.close()
         if hook is not None:
             hook.close()
         if monitor is not None:

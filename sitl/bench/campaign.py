@@ -362,6 +362,7 @@ def _execute_processes(specs: Sequence[RunSpec], runner: Callable[[RunSpec], dic
     """Runs in ``workers`` spawned processes, yielded as each finishes; unfinished ones are cancelled on exit."""
     ctx = multiprocessing.get_context("spawn")  # no fork: torch, threads and the simulator's state stay per process
     # Workers ignore Ctrl-C: the driver alone decides to stop, keeps what finished and ends the workers.
+    before = set(multiprocessing.active_children())  # the pool's workers are the children started after this
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_ignore_interrupts)
     pending: dict[Future, RunSpec] = {}
     try:
@@ -380,7 +381,7 @@ def _execute_processes(specs: Sequence[RunSpec], runner: Callable[[RunSpec], dic
                 yield spec, fut.result()
     finally:
         if pending:  # stopped early (Ctrl-C, an error): end the runs in flight now rather than wait for them
-            for process in list((getattr(pool, "_processes", None) or {}).values()):
+            for process in set(multiprocessing.active_children()) - before:
                 process.terminate()
         pool.shutdown(wait=not pending, cancel_futures=True)
 

@@ -31,7 +31,7 @@ from chaser_bt.tree import MissionTree, load_tree, reset_blackboard
 from chaser_bt.vehicle import LinkConfig, VehicleError
 from sitl.bench.in_process import InProcessVehicle
 from sitl.bench.sar_scoring import SarObserver, people_enu
-from sitl.bench.scoring import RehearsalObserver
+from sitl.bench.scoring import PHASE_KEY, RehearsalObserver
 from sitl.bench.sensors import SensorOptions, build_sensors
 from sitl.simulator import Simulator
 from sitl.world.scenario import Scenario, load_scenario
@@ -138,6 +138,7 @@ def rehearse(
     sensors: SensorOptions | None = None,
     on_start: Callable[[MissionRunner, InProcessVehicle, dict], None] | None = None,
     trace: bool = False,
+    progress: Callable[[float, str | None], None] | None = None,
 ) -> RehearsalReport:
     """Fly ``tree`` against a fresh simulator built from ``scenario`` with ``seed``; score it.
 
@@ -146,6 +147,7 @@ def rehearse(
     ``sensors`` says which sensors the mission gets (default :class:`SensorOptions`: every one the
     scenario provides). ``on_start(runner, vehicle, resources)`` runs after the tree's setup, before
     the first tick (a recorder's hook). ``trace`` fills ``report.trace`` (:class:`FlightTrace`).
+    ``progress(sim_time_s, phase)`` is called after every tick (:class:`~sitl.bench.rehearsal_progress.RehearsalProgress`).
 
     Raises:
         RehearsalInterrupted: on Ctrl-C, carrying the report of the flight so far (outcome ``interrupted``).
@@ -187,6 +189,8 @@ def rehearse(
             if runner.tick_if_due():
                 observer.after_tick(vehicle.clock.now())
                 sar.after_tick()
+                if progress is not None:
+                    progress(sim.time_s, py_trees.blackboard.Blackboard.storage.get(PHASE_KEY))
                 if runner.finished:
                     message = runner.tip_message()
                     outcome = _finished_outcome(runner.status, sim)
