@@ -16,7 +16,13 @@ kind ArduPilot accepts unsigned (RADIO_STATUS, RADIO); the rest are dropped and 
 the simulator's clock (boot epoch + sim time), as ArduPilot's follows GPS time.
 
 Periodic telemetry (what is due, and its lean encoding) lives in :mod:`sitl.vehicle.telemetry`; this module
-handles everything that arrives and the replies to it. All times are the simulator's.
+handles everything that arrives and the replies to it. All times are the simulator's. The mission, fence and
+rally protocol is :mod:`sitl.vehicle.mission_protocol`.
+
+The boot banner (GCS_MAVLINK_Copter::send_banner: "ArduCopter V4.6.0 (chaserbt)", "Frame: OCTA/X") goes out
+at boot and, as ArduCopter sends it, on PARAM_REQUEST_LIST and MAV_CMD_DO_SEND_BANNER (the 4.7.0-dev SITL
+sends it for neither REQUEST_MESSAGE AUTOPILOT_VERSION nor REQUEST_AUTOPILOT_CAPABILITIES). HEARTBEAT's
+type follows FRAME_CLASS unless the caller names one.
 """
 
 from __future__ import annotations
@@ -40,7 +46,13 @@ from chaser_bt.geo import (  # noqa: E402
 )
 from chaser_bt.vehicle.signing import SigningConfig, SigningGate, signing_timestamp  # noqa: E402
 from sitl.vehicle.autopilot import FORCE_ARM_MAGIC, Autopilot  # noqa: E402
-from sitl.vehicle.telemetry import StreamScheduler, TelemetryEncoder  # noqa: E402
+from sitl.vehicle.mission_protocol import MissionProtocol  # noqa: E402
+from sitl.vehicle.telemetry import (  # noqa: E402
+    FRAME_CLASSES,
+    StreamScheduler,
+    TelemetryEncoder,
+    banner_lines,
+)
 
 __all__ = ["MavlinkEndpoint", "Channel", "EndpointStats", "COMPID"]
 
@@ -98,12 +110,11 @@ class MavlinkEndpoint:
     Args:
         autopilot: the simulated flight controller (SI units, ENU).
         start_unix_s: wall-clock epoch of boot, for SYSTEM_TIME (from the scenario, so runs reproduce).
-        mav_type: HEARTBEAT type (an octocopter by default, the paper's S1000 class).
+        mav_type: HEARTBEAT type; by default the one FRAME_CLASS names (octocopter by default, the
+            paper's S1000 class).
     """
 
-    def __init__(
-        self, autopilot: Autopilot, *, start_unix_s: float, mav_type: int = mavlink2.MAV_TYPE_OCTOROTOR
-    ) -> None:
+    def __init__(self, autopilot: Autopilot, *, start_unix_s: float, mav_type: int | None = None) -> None:
         self._ap = autopilot
         self._start_unix_s = start_unix_s
         self.signing: SigningGate | None = None  # set by enable_signing()
@@ -117,6 +128,11 @@ class MavlinkEndpoint:
         self._requested: list[int] = []  # REQUEST_MESSAGE one-shots, sent after the ACK (deferred)
         self._param_queue: list[int] = []  # indices still to stream after PARAM_REQUEST_LIST
         self._last_home = None
+        self._banner_due = True  # sent at boot
+        if mav_type is None:
+            frame_class = int(autopilot.params.get("FRAME_CLASS"))
+            mav_type = FRAME_CLASSES.get(frame_class, (mavlink2.MAV_TYPE_OCTOROTOR, ""))[0]
+        self.missions = MissionProtocol(autopilot.missions, lambda: self._ap.home, self._emit, self._send_statustext)
         self.telemetry = TelemetryEncoder(self._ap, self._emit, start_unix_s=start_unix_s, mav_type=mav_type)
         self._senders = self.telemetry.senders
         self._handlers: dict[str, Callable] = {
@@ -132,6 +148,9 @@ class MavlinkEndpoint:
             "PARAM_REQUEST_READ": self._on_param_request_read,
             "PARAM_SET": self._on_param_set,
             "REQUEST_DATA_STREAM": self._on_request_data_stream,
+            **{kind: self._on_mission for kind in (
+                "MISSION_REQUEST_LIST", "MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_COUNT",
+                "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_CLEAR_ALL", "MISSION_ACK")},
         }
         self._commands: dict[int, Callable[[tuple[float, ...]], int]] = {
             mavlink2.MAV_CMD_COMPONENT_ARM_DISARM: self._cmd_arm_disarm,
@@ -144,6 +163,7 @@ class MavlinkEndpoint:
             mavlink2.MAV_CMD_GET_MESSAGE_INTERVAL: self._cmd_get_message_interval,
             mavlink2.MAV_CMD_REQUEST_MESSAGE: self._cmd_request_message,
             mavlink2.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: self._cmd_request_autopilot_capabilities,
+            mavlink2.MAV_CMD_DO_SEND_BANNER: self._cmd_send_banner,
         }
 
     # ------------------------------------------------------------------ public
@@ -209,6 +229,9 @@ class MavlinkEndpoint:
         if self.signing is not None:
             self.signing.advance(self._signing_clock())
         self.telemetry.begin()
+        if self._banner_due:
+            self._banner_due = False
+            self._send_banner()
         for severity, text in ap.pop_statustexts():
             self._send_statustext(severity, text)
         home = ap.home
@@ -243,6 +266,11 @@ class MavlinkEndpoint:
 
     def _send_statustext(self, severity: int, text: str) -> None:
         self._emit(mavlink2.MAVLink_statustext_message(int(severity), text[:STATUSTEXT_LEN].encode("ascii", "replace")))
+
+    def _send_banner(self) -> None:
+        p = self._ap.params
+        for line in banner_lines(int(p.get("FRAME_CLASS")), int(p.get("FRAME_TYPE"))):
+            self._send_statustext(mavlink2.MAV_SEVERITY_INFO, line)
 
     def _send_ack(self, command: int, result: int, msg) -> None:
         self._emit(
@@ -387,6 +415,10 @@ class MavlinkEndpoint:
         self._requested.append(mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
         return mavlink2.MAV_RESULT_ACCEPTED
 
+    def _cmd_send_banner(self, p: tuple[float, ...]) -> int:
+        self._banner_due = True  # after the ACK, as the real SITL sends it
+        return mavlink2.MAV_RESULT_ACCEPTED
+
     def _on_set_mode(self, msg) -> None:
         # Legacy SET_MODE: ArduPilot answers it with a COMMAND_ACK whose command is the message id (11).
         if msg.target_system != self.sysid:
@@ -518,11 +550,16 @@ class MavlinkEndpoint:
         self._ap.rc_override(channels)
         self._ap.gcs_heartbeat()
 
+    def _on_mission(self, msg) -> None:
+        if self._for_us(msg.target_system, msg.target_component):
+            self.missions.handle(msg)
+
     # --- parameter protocol (GCS_Param.cpp) ---
     def _on_param_request_list(self, msg) -> None:
         if not self._for_us(msg.target_system, msg.target_component):
             return
         self._param_queue = list(range(self._ap.params.count()))
+        self._banner_due = True  # GCS_Param.cpp: "requesting parameters is a convenient way to get extra information"
 
     def _on_param_request_read(self, msg) -> None:
         if not self._for_us(msg.target_system, msg.target_component):
