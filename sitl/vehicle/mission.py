@@ -2,8 +2,9 @@
 
 Three lists, one per MAV_MISSION_TYPE (0 mission, 1 fence, 2 rally), of items as MISSION_ITEM_INT
 carries them. The mission's item 0 is home: whatever is uploaded there, reading item 0 gives the
-vehicle's home (AP_Mission::read_cmd_from_storage), so a fresh vehicle's mission has one item.
-Fence and rally lists start empty. The upload and download protocol is
+vehicle's home (AP_Mission::read_cmd_from_storage). A fresh vehicle's mission has that one item;
+MISSION_CLEAR_ALL leaves it with none (the 4.7.0-dev SITL then answers MISSION_COUNT 0) until the
+next upload. Fence and rally lists start empty. The upload and download protocol is
 :mod:`sitl.vehicle.mission_protocol`; nothing here flies a mission (the autopilot has no AUTO).
 """
 
@@ -39,26 +40,26 @@ class MissionStore:
     """The vehicle's stored lists; the mission's item 0 slot is home's (see module docstring)."""
 
     def __init__(self) -> None:
-        self._items: dict[int, list[MissionItem]] = {t: [] for t in MISSION_TYPES}
+        self._items: dict[int, list[MissionItem | None]] = {t: [] for t in MISSION_TYPES}
+        self._items[MISSION].append(None)  # home's slot: read as the vehicle's home
 
     def count(self, mission_type: int) -> int:
-        """MISSION_COUNT.count: stored items, the mission at least 1 (home)."""
-        n = len(self._items[mission_type])
-        return max(n, 1) if mission_type == MISSION else n
+        """MISSION_COUNT.count: the items stored (home's slot included)."""
+        return len(self._items[mission_type])
 
     def item(self, mission_type: int, seq: int) -> MissionItem | None:
-        """Stored item ``seq`` (the mission's item 0 is not stored: home is given by the caller)."""
+        """Stored item ``seq``; None past the end and for the mission's item 0 (home: the caller's)."""
         items = self._items[mission_type]
         return items[seq] if 0 <= seq < len(items) else None
 
-    def replace(self, mission_type: int, items: list[MissionItem]) -> None:
+    def replace(self, mission_type: int, items: list[MissionItem] | list[MissionItem | None]) -> None:
         """A completed upload: the list becomes ``items``."""
         self._items[mission_type] = list(items)
 
     def polygon_points(self) -> int:
         """Stored fence polygon vertices (inclusion or exclusion), for AC_Fence's "present"."""
-        return sum(1 for i in self._items[FENCE] if i.command in _POLYGON_VERTEX_COMMANDS)
+        return sum(1 for i in self._items[FENCE] if i is not None and i.command in _POLYGON_VERTEX_COMMANDS)
 
     def clear(self, mission_type: int) -> None:
-        """MISSION_CLEAR_ALL for one list (the mission keeps home as item 0)."""
+        """MISSION_CLEAR_ALL (or an upload of 0 items) for one list."""
         self._items[mission_type] = []

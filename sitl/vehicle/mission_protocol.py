@@ -14,7 +14,8 @@ mission, fence and rally lists alike:
   list; a fence item that is not a fence command or a rally item that is not a rally point ends
   the upload with MAV_MISSION_UNSUPPORTED. An item with another sequence number gets the awaited
   request again (ArduPilot re-requests on a timer; here at once).
-- MISSION_CLEAR_ALL -> MISSION_ACK ACCEPTED (mission type 255 clears all three).
+- MISSION_CLEAR_ALL -> MISSION_ACK ACCEPTED (mission type 255 clears all three); the mission is then
+  empty, home slot included, as the real SITL reports it.
 
 Replies go to the requesting system and component.
 """
@@ -116,7 +117,7 @@ class MissionProtocol:
             self._ack(msg, mavlink2.MAV_MISSION_INVALID_SEQUENCE, t)
             return
         item = self._home_item() if t == MISSION and seq == 0 else self._store.item(t, seq)
-        if item is None:  # a mission uploaded with only item 0 stored nothing else
+        if item is None:  # cannot happen inside the count; kept so a gap never crashes the link
             self._ack(msg, mavlink2.MAV_MISSION_INVALID_SEQUENCE, t)
             return
         src = (msg.get_srcSystem(), msg.get_srcComponent())
