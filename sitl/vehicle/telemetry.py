@@ -174,9 +174,11 @@ FIRMWARE_STRING = "ArduCopter V4.6.0"
 # banner's "(...)"; this build is chaser-bt's simulator, and says so in the same 8 characters.
 BUILD_ID = "chaserbt"
 # The bits ArduCopter sets (GCS_MAVLINK::capabilities(); the 4.7.0-dev SITL reports 64495) less
-# those for what the simulator lacks: FTP, TERRAIN, FLIGHT_TERMINATION, COMPASS_CALIBRATION.
+# those for what the simulator lacks: TERRAIN, FLIGHT_TERMINATION, COMPASS_CALIBRATION. FTP: the
+# parameter file only (sitl.vehicle.mavftp), which is what ground stations use it for.
 CAPABILITIES = (
     mavlink2.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+    | mavlink2.MAV_PROTOCOL_CAPABILITY_FTP
     | mavlink2.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
     | mavlink2.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT
     | mavlink2.MAV_PROTOCOL_CAPABILITY_MISSION_INT

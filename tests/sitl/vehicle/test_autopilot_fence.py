@@ -10,7 +10,13 @@ from __future__ import annotations
 
 import pytest
 
-from sitl.vehicle.fence import FENCE_ALT_MAX, FENCE_CIRCLE, fence_breaches, fence_enabled, fence_present
+from sitl.vehicle.fence import (
+    FENCE_ALT_MAX,
+    FENCE_CIRCLE,
+    fence_breaches,
+    fence_enabled,
+    fence_present,
+)
 from sitl.vehicle.params import ParamStore
 
 RTL, LAND = 6, 9
