@@ -68,7 +68,7 @@ def test_the_parameter_file_holds_every_parameter_as_param_value_gives_it():
         ref = listed[name.decode()]
         assert ap_type == AP_TYPE[ref.param_type]
         assert abs(value - ref.param_value) < 1e-3
-    assert dict((n.decode(), v) for n, v, _ in decoded.params)["RTL_ALT"] == 2500
+    assert {n.decode(): v for n, v, _ in decoded.params}["RTL_ALT"] == 2500
 
 
 def test_with_defaults_the_file_carries_each_changed_parameters_default():
