@@ -1,6 +1,8 @@
 """The simulated ArduCopter's parameters: ArduCopter names, units and defaults (4.5/4.6).
 
-Only parameters the simulator obeys are listed; an unknown name is rejected, as a real
+Only parameters the simulator obeys are listed, and a few that ground stations read to know the
+vehicle (FRAME_CLASS and FRAME_TYPE name the frame in the banner and HEARTBEAT; FENCE_ALT_MIN and
+FENCE_MARGIN are stored, not enforced: sitl.vehicle.fence); an unknown name is rejected, as a real
 autopilot answers nothing for it. Units are ArduPilot's (centimetres, cm/s, centidegrees,
 milliseconds where ArduCopter uses them), so a script that tunes a real copter tunes this one.
 Defaults are ArduCopter's except where noted: FS_GCS_ENABLE is 1 (RTL) here, the battery
