@@ -5,8 +5,9 @@ ArduPilot serves a virtual file system over FILE_TRANSFER_PROTOCOL (GCS_FTP.cpp)
 one PARAM_VALUE at a time. This server keeps the part they use for that: OpenFileRO of
 ``@PARAM/param.pck`` (``?withdefaults=1`` adds the defaults), ReadFile, BurstReadFile,
 TerminateSession and ResetSessions, one session at a time as ArduPilot. Anything else is refused
-with ArduPilot's error codes: another path FileNotFound, a second open Fail, a wrong session
-InvalidSession, another operation UnknownCommand.
+with a Nack carrying the error code the 4.7.0-dev SITL in ``../shared/ardupilot`` sent for it:
+another path FileNotFound, a second open Fail, a wrong session InvalidSession, a read past the
+end EOF (offset 0 in the Nack), any other operation Fail.
 
 The file is AP_Filesystem_Param's packed format: a header (magic 0x671b, 0x671c with defaults;
 the parameter count twice), then per parameter a type byte (AP_Param type 1 int8, 2 int16, 3 int32,
@@ -38,7 +39,7 @@ _HEADER = struct.Struct("<HBBBBBBI")  # seq, session, opcode, size, req_opcode, 
 # opcodes and errors (mavlink common.xml MAV_FTP_OPCODE / MAV_FTP_ERR)
 OP_TERMINATE, OP_RESET, OP_OPEN_RO, OP_READ, OP_BURST_READ = 1, 2, 4, 5, 15
 OP_ACK, OP_NACK = 128, 129
-ERR_FAIL, ERR_INVALID_SESSION, ERR_EOF, ERR_UNKNOWN_COMMAND, ERR_NOT_FOUND = 1, 4, 6, 7, 10
+ERR_FAIL, ERR_INVALID_SESSION, ERR_EOF, ERR_NOT_FOUND = 1, 4, 6, 10
 
 _AP_TYPES = {MAV_PARAM_TYPE_INT8: (1, "b"), MAV_PARAM_TYPE_INT16: (2, "h"), MAV_PARAM_TYPE_INT32: (3, "i"),
              MAV_PARAM_TYPE_REAL32: (4, "f")}
@@ -101,8 +102,8 @@ class MavFtpServer:
             head = _HEADER.pack(seq_out[0], session, op, len(content), opcode, burst_complete, 0, at)
             send((head + content).ljust(251, b"\0"))
 
-        def nack(err: int) -> None:
-            reply(OP_NACK, bytes([err]), at=offset)
+        def nack(err: int, *, burst_complete: int = 0) -> None:
+            reply(OP_NACK, bytes([err]), burst_complete=burst_complete)
 
         if opcode == OP_OPEN_RO:
             path = body.split(b"\0", 1)[0].decode("ascii", "replace")
@@ -121,7 +122,7 @@ class MavFtpServer:
                 nack(ERR_INVALID_SESSION)
                 return
             if offset >= len(self._file):
-                reply(OP_NACK, bytes([ERR_EOF]), at=offset, burst_complete=1 if opcode == OP_BURST_READ else 0)
+                nack(ERR_EOF, burst_complete=1 if opcode == OP_BURST_READ else 0)
                 return
             chunk = min(size, MAX_DATA) or MAX_DATA
             if opcode == OP_READ:
@@ -143,4 +144,4 @@ class MavFtpServer:
             self._session = None
             reply(OP_ACK)
         else:
-            nack(ERR_UNKNOWN_COMMAND)
+            nack(ERR_FAIL)

@@ -4,7 +4,12 @@ References: ArduPilot's GCS_FTP.cpp (opcodes, one session, replies with seq + 1 
 Nack payload = the error code) and AP_Filesystem_Param (``@PARAM/param.pck``); the file is
 decoded with ``pymavlink.mavftp.MAVFTP.ftp_param_decode``, the decoder MAVProxy's parameter
 download uses, and compared with what PARAM_REQUEST_LIST says. The 4.7.0-dev SITL in
-``../shared/ardupilot`` served its 1354 parameters this way.
+``../shared/ardupilot`` served its 1354 parameters this way, and answered (request -> reply
+opcode, size, data): ResetSessions -> Ack; OpenFileRO of a missing path -> Nack [10]; of
+``@PARAM/param.pck`` -> Ack, 4 bytes (the size); a second open -> Nack [1]; ReadFile on another
+session -> Nack [4] with that session; ReadFile offset 6 size 10 -> Ack, 10 bytes at offset 6;
+past the end -> Nack [6] at offset 0; an opcode it does not know -> Nack [1]; each reply's seq
+the request's + 1 and its req_opcode the request's opcode.
 """
 
 from __future__ import annotations
@@ -19,13 +24,14 @@ from pymavlink.mavftp_op import (
     OP_Nack,
     OP_OpenFileRO,
     OP_ReadFile,
+    OP_ResetSessions,
     OP_TerminateSession,
 )
 
 HEADER = struct.Struct("<HBBBBBBI")
 AP_TYPE = {mav.MAV_PARAM_TYPE_INT8: 1, mav.MAV_PARAM_TYPE_INT16: 2, mav.MAV_PARAM_TYPE_INT32: 3,
            mav.MAV_PARAM_TYPE_REAL32: 4}
-EOF_ERROR, NOT_FOUND, INVALID_SESSION = 6, 10, 4
+FAIL, EOF_ERROR, NOT_FOUND, INVALID_SESSION = 1, 6, 10, 4
 
 
 def _request(gcs, seq: int, opcode: int, *, session: int = 0, offset: int = 0, size: int = 0, data: bytes = b""):
@@ -86,13 +92,19 @@ def test_a_plain_read_returns_one_chunk_at_the_offset_and_eof_past_the_end():
     (size,) = struct.unpack("<I", data)
     ((_, _, op, req, _, ofs, chunk),) = _request(gcs, 3, OP_ReadFile, offset=6, size=10)
     assert (op, req, ofs, len(chunk)) == (OP_Ack, OP_ReadFile, 6, 10)
-    ((_, _, op, _, _, _, err),) = _request(gcs, 5, OP_ReadFile, offset=size, size=10)
-    assert (op, err) == (OP_Nack, bytes([EOF_ERROR]))
+    ((seq, _, op, req, _, ofs, err),) = _request(gcs, 5, OP_ReadFile, offset=size, size=10)
+    assert (seq, op, req, ofs, err) == (6, OP_Nack, OP_ReadFile, 0, bytes([EOF_ERROR]))
 
 
 def test_other_paths_and_wrong_sessions_are_refused_with_arducopters_errors():
     gcs = ready_gcs()
     ((_, _, op, _, _, _, err),) = _request(gcs, 1, OP_OpenFileRO, data=b"/APM/LOGS/1.BIN\0")
     assert (op, err) == (OP_Nack, bytes([NOT_FOUND]))
-    ((_, _, op, _, _, _, err),) = _request(gcs, 3, OP_ReadFile, session=3, size=10)
-    assert (op, err) == (OP_Nack, bytes([INVALID_SESSION]))
+    ((_, session, op, _, _, _, err),) = _request(gcs, 3, OP_ReadFile, session=3, size=10)
+    assert (session, op, err) == (3, OP_Nack, bytes([INVALID_SESSION]))
+    _request(gcs, 5, OP_OpenFileRO, data=b"@PARAM/param.pck\0")
+    ((_, _, op, _, _, _, err),) = _request(gcs, 7, OP_OpenFileRO, data=b"@PARAM/param.pck\0")
+    assert (op, err) == (OP_Nack, bytes([FAIL]))  # one session at a time
+    ((_, _, op, req, _, _, err),) = _request(gcs, 9, 74)
+    assert (op, req, err) == (OP_Nack, 74, bytes([FAIL]))
+    assert _request(gcs, 11, OP_ResetSessions)[0][2] == OP_Ack
