@@ -160,13 +160,14 @@ class Simulator:
             intruder.step(t, self.dt)
         self._radar_step()
         endpoint.update()
-        out = endpoint.take_output()
-        if not self.link_up:  # the radio's state at the time the bytes are sent
-            out = b""
-        for intruder in self.intruders:  # the intruders' own radios
-            out += intruder.telemetry_bytes(round(t, 6))
-        if out:
-            for port, _ in self._ports:
+        up = self.link_up  # the radio's state at the time the bytes are sent
+        others = b"".join(intruder.telemetry_bytes(round(t, 6)) for intruder in self.intruders)  # their own radios
+        for port, channel in self._ports:
+            out = endpoint.take_output(channel)  # each client its own link, as ArduCopter gives it
+            if not up:
+                out = b""
+            out += others
+            if out:
                 port.write(out)
 
     def run_until(self, t_s: float) -> None:

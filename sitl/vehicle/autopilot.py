@@ -12,6 +12,13 @@ and yaw centred (1500) and the throttle stick down (1000), so ALT_HOLD descends 
 overrides throttle to 1500 (DESIGN §5). Channels 5-16 read 1500 (no mode switch is simulated). The land detector uses rotor contact with the ground held for
 LAND_DETECTOR_TRIGGER_SEC (1 s), standing in for ArduCopter's "throttle at minimum and not
 accelerating" test.
+
+Mode changes follow Copter::set_mode: while disarmed any existing mode is accepted (the checks a
+mode needs, such as a position estimate, come at arming), while armed a mode that needs a position
+is refused without one. The geofence (:mod:`sitl.vehicle.fence`) is checked at 10 Hz; a new breach
+while armed is announced ("Fence Breached") and acted on as FENCE_ACTION says. The vehicle's
+mission, fence and rally storage (:mod:`sitl.vehicle.mission`) is kept here, as ArduCopter keeps it
+in its own storage; this autopilot does not fly AUTO.
 """
 
 from __future__ import annotations
@@ -30,6 +37,8 @@ from chaser_bt.geo import (
     euler_ned_from_rotation,
 )
 from sitl.vehicle.airframe import AirframeParams
+from sitl.vehicle.fence import FENCE_GIVE_UP_DISTANCE_M, breach_distance, fence_breaches
+from sitl.vehicle.mission import MissionStore
 from sitl.vehicle.modes import (
     AUTO_YAW_RATE_MAX,
     LAND_DETECT_S,
@@ -55,7 +64,7 @@ MAV_LANDED_STATE_TAKEOFF = 3
 MAV_LANDED_STATE_LANDING = 4
 FORCE_ARM_MAGIC = 21196  # MAV_CMD_COMPONENT_ARM_DISARM param2 that skips the checks
 
-_SEV_CRITICAL, _SEV_WARNING, _SEV_INFO = 2, 4, 6
+_SEV_CRITICAL, _SEV_WARNING, _SEV_NOTICE, _SEV_INFO = 2, 4, 5, 6
 _RC_NEUTRAL = (1500, 1500, 1000, 1500) + (1500,) * 12  # ch1-16 with no transmitter
 _UINT16_MAX = 65535
 
@@ -177,6 +186,8 @@ class Autopilot:
         self.fs_ekf = False
         self._batt_low_since: float | None = None
         self._batt_next_check = 0.0
+        self.fence_breaches = 0  # FENCE_TYPE bits breached now (SYS_STATUS GEOFENCE health)
+        self.missions = MissionStore()
         self._ground_time = 0.0
         self._idle = False
         self._idle_time = 0.0
@@ -371,6 +382,7 @@ class Autopilot:
         if t >= self._batt_next_check:
             self._batt_next_check = t + _BATT_CHECK_PERIOD_S
             self._battery_failsafe()
+            self._fence_check()
 
     def _battery_failsafe(self) -> None:
         p = self.p
@@ -389,6 +401,28 @@ class Autopilot:
         self._text(_SEV_CRITICAL, f"Battery 1 is low {volt:.2f}V used {b.consumed_mah:.0f} mAh")
         if self.armed:
             self._failsafe_action(int(p["BATT_FS_LOW_ACT"]), {1: 9, 2: 6, 3: 6, 4: 9, 6: 6})
+
+    def _fence_check(self) -> None:
+        """Copter::fence_check: breaches are recorded armed or not, acted on only while armed."""
+        p = self.p
+        if self.home_enu is None:
+            self.fence_breaches = 0
+            return
+        hx, hy, _ = self.home_enu
+        dist, alt = math.hypot(self.ex - hx, self.ey - hy), self.alt_rel()
+        before = self.fence_breaches
+        self.fence_breaches = fence_breaches(p, dist, alt)
+        new = self.fence_breaches & ~before
+        if not new or not self.armed:
+            return
+        if not self.land_complete:
+            self._text(_SEV_NOTICE, "Fence Breached")
+        action = int(p["FENCE_ACTION"])
+        if action == 0:
+            return
+        if action in (1, 3, 5) and breach_distance(p, new, dist, alt) > FENCE_GIVE_UP_DISTANCE_M:
+            action = 2  # too far outside to fly back: land where it is
+        self._failsafe_action(action, {1: 6, 2: 9, 3: 6, 4: 17, 5: 6})
 
     def _failsafe_action(self, action: int, modes: dict[int, int]) -> None:
         """Disarm when landed, else switch to the action's mode (LAND if that mode can't be used)."""
@@ -474,7 +508,8 @@ class Autopilot:
 
     def _change_mode(self, number: int) -> bool:
         mode = self._modes[number]
-        if mode.requires_position and not self.ekf_ok:
+        # Copter::set_mode: ignore_checks = !armed; the arming checks cover the mode's needs.
+        if self.armed and mode.requires_position and not self.ekf_ok:
             self._text(_SEV_WARNING, f"Mode change to {mode.name} failed: requires position")
             return False
         reason = mode.enter(self)

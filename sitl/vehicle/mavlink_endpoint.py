@@ -1,13 +1,16 @@
 """The simulator's MAVLink face: makes an :class:`~sitl.vehicle.autopilot.Autopilot` look like ArduCopter 4.5/4.6.
 
-Bytes in (any number of channels, each with its own parser so streams never interleave), bytes out
-(one MAVLink 2 stream, ardupilotmega dialect, sysid ``SYSID_THISMAV``, compid AUTOPILOT1). What is
+Bytes in and out per channel (one port or one TCP client each, as ArduCopter gives each client its own
+link): each has its own parser, its own MAVLink 2 output (ardupilotmega dialect, sysid ``SYSID_THISMAV``,
+compid AUTOPILOT1, its own sequence numbers) and its own message rates. What is
 answered and how follows ArduPilot's GCS_MAVLink library (GCS_Common.cpp, GCS_Param.cpp,
 ArduCopter/GCS_Mavlink.cpp), cited per handler. Everything converts here and only here: NED <->
 ENU, FRD <-> FLU, 1e7-degree integers, cm and mm, scalar-first quaternions.
 
-Output goes to every attached port (a broadcast radio): a command's ACK reaches every client, which
-MAVLink clients tolerate because COMMAND_ACK carries the requester's system and component ids.
+As in ArduPilot's GCS_MAVLink, what answers a request (COMMAND_ACK, PARAM_VALUE for a read or a list,
+MESSAGE_INTERVAL, the mission protocol, a requested message, the banner on request) goes to the channel
+that asked; SET_MESSAGE_INTERVAL and REQUEST_DATA_STREAM set that channel's rates only; STATUSTEXT,
+HOME_POSITION on change, PARAM_VALUE after a PARAM_SET and the boot banner go to every channel.
 
 With :meth:`MavlinkEndpoint.enable_signing` the endpoint signs everything it sends and, like
 ArduCopter with a signing key stored, acts only on messages that are correctly signed or are of a
@@ -16,7 +19,13 @@ kind ArduPilot accepts unsigned (RADIO_STATUS, RADIO); the rest are dropped and 
 the simulator's clock (boot epoch + sim time), as ArduPilot's follows GPS time.
 
 Periodic telemetry (what is due, and its lean encoding) lives in :mod:`sitl.vehicle.telemetry`; this module
-handles everything that arrives and the replies to it. All times are the simulator's.
+handles everything that arrives and the replies to it. All times are the simulator's. The mission, fence and
+rally protocol is :mod:`sitl.vehicle.mission_protocol`, MAVFTP's parameter file :mod:`sitl.vehicle.mavftp`.
+
+The boot banner (GCS_MAVLINK_Copter::send_banner: "ArduCopter V4.6.0 (chaserbt)", "Frame: OCTA/X") goes out
+at boot and, as ArduCopter sends it, on PARAM_REQUEST_LIST and MAV_CMD_DO_SEND_BANNER (the 4.7.0-dev SITL
+sends it for neither REQUEST_MESSAGE AUTOPILOT_VERSION nor REQUEST_AUTOPILOT_CAPABILITIES). HEARTBEAT's
+type follows FRAME_CLASS unless the caller names one.
 """
 
 from __future__ import annotations
@@ -40,7 +49,14 @@ from chaser_bt.geo import (  # noqa: E402
 )
 from chaser_bt.vehicle.signing import SigningConfig, SigningGate, signing_timestamp  # noqa: E402
 from sitl.vehicle.autopilot import FORCE_ARM_MAGIC, Autopilot  # noqa: E402
-from sitl.vehicle.telemetry import StreamScheduler, TelemetryEncoder  # noqa: E402
+from sitl.vehicle.mavftp import MavFtpServer  # noqa: E402
+from sitl.vehicle.mission_protocol import MissionProtocol  # noqa: E402
+from sitl.vehicle.telemetry import (  # noqa: E402
+    FRAME_CLASSES,
+    StreamScheduler,
+    TelemetryEncoder,
+    banner_lines,
+)
 
 __all__ = ["MavlinkEndpoint", "Channel", "EndpointStats", "COMPID"]
 
@@ -85,11 +101,18 @@ class EndpointStats:
 
 
 class Channel:
-    """One incoming byte stream (one port or one client) with its own MAVLink parser."""
+    """One link (one port or one client): its parser, its output with its own sequence numbers, its
+    message rates, and what it asked for that is still to be sent."""
 
-    def __init__(self) -> None:
+    def __init__(self, sysid: int = 1) -> None:
         self.parser = mavlink2.MAVLink(None)
         self.parser.robust_parsing = True  # bad bytes become BAD_DATA messages, never exceptions
+        self.mav = mavlink2.MAVLink(None, srcSystem=sysid, srcComponent=COMPID)
+        self.out = bytearray()
+        self.streams = StreamScheduler()
+        self.requested: list[int] = []  # REQUEST_MESSAGE one-shots, sent after the ACK (deferred)
+        self.param_queue: list[int] = []  # indices still to stream after PARAM_REQUEST_LIST
+        self.banner_due = False  # asked for (PARAM_REQUEST_LIST, DO_SEND_BANNER): sent after the ACK
 
 
 class MavlinkEndpoint:
@@ -98,25 +121,26 @@ class MavlinkEndpoint:
     Args:
         autopilot: the simulated flight controller (SI units, ENU).
         start_unix_s: wall-clock epoch of boot, for SYSTEM_TIME (from the scenario, so runs reproduce).
-        mav_type: HEARTBEAT type (an octocopter by default, the paper's S1000 class).
+        mav_type: HEARTBEAT type; by default the one FRAME_CLASS names (octocopter by default, the
+            paper's S1000 class).
     """
 
-    def __init__(
-        self, autopilot: Autopilot, *, start_unix_s: float, mav_type: int = mavlink2.MAV_TYPE_OCTOROTOR
-    ) -> None:
+    def __init__(self, autopilot: Autopilot, *, start_unix_s: float, mav_type: int | None = None) -> None:
         self._ap = autopilot
         self._start_unix_s = start_unix_s
         self.signing: SigningGate | None = None  # set by enable_signing()
         self._signing_epoch_s = start_unix_s
-        self._channels: weakref.WeakSet[Channel] = weakref.WeakSet()  # open ones, for enable_signing
+        self._channels: list[weakref.ref[Channel]] = []  # open ones, in the order opened
+        self._target: Channel | None = None  # the channel being answered; None = every channel
         self.sysid = int(autopilot.params.get("SYSID_THISMAV"))
-        self._mav = mavlink2.MAVLink(None, srcSystem=self.sysid, srcComponent=COMPID)
-        self._out = bytearray()
         self.stats = EndpointStats()
-        self.streams = StreamScheduler()
-        self._requested: list[int] = []  # REQUEST_MESSAGE one-shots, sent after the ACK (deferred)
-        self._param_queue: list[int] = []  # indices still to stream after PARAM_REQUEST_LIST
         self._last_home = None
+        self._boot_banner_due = True  # sent at boot, to every channel
+        if mav_type is None:
+            frame_class = int(autopilot.params.get("FRAME_CLASS"))
+            mav_type = FRAME_CLASSES.get(frame_class, (mavlink2.MAV_TYPE_OCTOROTOR, ""))[0]
+        self.ftp = MavFtpServer(autopilot.params)
+        self.missions = MissionProtocol(autopilot.missions, lambda: self._ap.home, self._emit, self._send_statustext)
         self.telemetry = TelemetryEncoder(self._ap, self._emit, start_unix_s=start_unix_s, mav_type=mav_type)
         self._senders = self.telemetry.senders
         self._handlers: dict[str, Callable] = {
@@ -132,6 +156,10 @@ class MavlinkEndpoint:
             "PARAM_REQUEST_READ": self._on_param_request_read,
             "PARAM_SET": self._on_param_set,
             "REQUEST_DATA_STREAM": self._on_request_data_stream,
+            "FILE_TRANSFER_PROTOCOL": self._on_file_transfer_protocol,
+            **{kind: self._on_mission for kind in (
+                "MISSION_REQUEST_LIST", "MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_COUNT",
+                "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_CLEAR_ALL", "MISSION_ACK")},
         }
         self._commands: dict[int, Callable[[tuple[float, ...]], int]] = {
             mavlink2.MAV_CMD_COMPONENT_ARM_DISARM: self._cmd_arm_disarm,
@@ -144,16 +172,25 @@ class MavlinkEndpoint:
             mavlink2.MAV_CMD_GET_MESSAGE_INTERVAL: self._cmd_get_message_interval,
             mavlink2.MAV_CMD_REQUEST_MESSAGE: self._cmd_request_message,
             mavlink2.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: self._cmd_request_autopilot_capabilities,
+            mavlink2.MAV_CMD_DO_SEND_BANNER: self._cmd_send_banner,
         }
 
     # ------------------------------------------------------------------ public
     def open_channel(self) -> Channel:
         """A parser for one more incoming byte stream (checking signatures once signing is on)."""
-        channel = Channel()
+        channel = Channel(self.sysid)
         if self.signing is not None:
             self.signing.attach(channel.parser)
-        self._channels.add(channel)
+            self.signing.attach(channel.mav)
+        self._channels.append(weakref.ref(channel))
         return channel
+
+    def channels(self) -> list[Channel]:
+        """The open channels, in the order opened (closed ones are forgotten)."""
+        live = [c for c in (r() for r in self._channels) if c is not None]
+        if len(live) != len(self._channels):
+            self._channels = [weakref.ref(c) for c in live]
+        return live
 
     def enable_signing(self, config: SigningConfig, *, epoch_unix_s: float | None = None) -> SigningGate:
         """Sign from now on and obey only correctly signed messages (and RADIO_STATUS/RADIO unsigned).
@@ -169,9 +206,9 @@ class MavlinkEndpoint:
         """
         self._signing_epoch_s = self._start_unix_s if epoch_unix_s is None else float(epoch_unix_s)
         gate = SigningGate(config, signing_timestamp(self._signing_clock()))
-        gate.attach(self._mav)
-        for channel in self._channels:
+        for channel in self.channels():
             gate.attach(channel.parser)
+            gate.attach(channel.mav)
         self.signing = gate
         return gate
 
@@ -200,7 +237,11 @@ class MavlinkEndpoint:
             self.stats.messages_in += 1
             handler = self._handlers.get(kind)
             if handler is not None:
-                handler(msg)
+                self._target = channel
+                try:
+                    handler(msg)
+                finally:
+                    self._target = None
 
     def update(self) -> None:
         """Queue what is due after a physics step: STATUSTEXTs, HOME_POSITION on change, one-shots,
@@ -209,6 +250,9 @@ class MavlinkEndpoint:
         if self.signing is not None:
             self.signing.advance(self._signing_clock())
         self.telemetry.begin()
+        if self._boot_banner_due:
+            self._boot_banner_due = False
+            self._send_banner()
         for severity, text in ap.pop_statustexts():
             self._send_statustext(severity, text)
         home = ap.home
@@ -216,54 +260,87 @@ class MavlinkEndpoint:
             self._last_home = home
             if home is not None:
                 self._senders[mavlink2.MAVLINK_MSG_ID_HOME_POSITION]()  # sent whenever home is (re)set
-        if self._requested:
-            requested, self._requested = self._requested, []
-            for msg_id in requested:
-                self._senders[msg_id]()
-        if self._param_queue:
-            self._stream_params()
         senders = self._senders
-        for msg_id in self.streams.due(ap.time_s):
-            senders[msg_id]()
+        now = ap.time_s
+        for channel in self.channels():
+            self._target = channel
+            try:
+                if channel.banner_due:
+                    channel.banner_due = False
+                    self._send_banner()
+                if channel.requested:
+                    requested, channel.requested = channel.requested, []
+                    for msg_id in requested:
+                        senders[msg_id]()
+                if channel.param_queue:
+                    self._stream_params(channel)
+                for msg_id in channel.streams.due(now):
+                    senders[msg_id]()
+            finally:
+                self._target = None
 
-    def take_output(self) -> bytes:
-        """Every byte queued since the last call (``b""`` when none)."""
-        if not self._out:
+    def take_output(self, channel: Channel) -> bytes:
+        """Every byte queued for ``channel`` since the last call (``b""`` when none)."""
+        if not channel.out:
             return b""
-        data = bytes(self._out)
-        self._out.clear()
+        data = bytes(channel.out)
+        channel.out.clear()
         return data
 
     # ------------------------------------------------------------------ encoding
     def _emit(self, msg) -> None:
-        mav = self._mav
-        self._out += msg.pack(mav)
-        mav.seq = (mav.seq + 1) & 0xFF
-        self.stats.packets_out += 1
+        """Queue ``msg`` for the channel being answered, or for every channel outside an answer."""
+        target = self._target
+        for channel in (target,) if target is not None else self.channels():
+            mav = channel.mav
+            channel.out += msg.pack(mav)
+            mav.seq = (mav.seq + 1) & 0xFF
+            self.stats.packets_out += 1
+
+    def _broadcast(self, msg) -> None:
+        """Queue ``msg`` for every channel (GCS::send_text, GCS::send_parameter_value)."""
+        target, self._target = self._target, None
+        try:
+            self._emit(msg)
+        finally:
+            self._target = target
 
     def _send_statustext(self, severity: int, text: str) -> None:
-        self._emit(mavlink2.MAVLink_statustext_message(int(severity), text[:STATUSTEXT_LEN].encode("ascii", "replace")))
+        self._broadcast(
+            mavlink2.MAVLink_statustext_message(int(severity), text[:STATUSTEXT_LEN].encode("ascii", "replace")))
+
+    def _send_banner(self) -> None:
+        """GCS_MAVLINK::send_banner on this link (the channel being answered; every channel at boot)."""
+        p = self._ap.params
+        for line in banner_lines(int(p.get("FRAME_CLASS")), int(p.get("FRAME_TYPE"))):
+            self._emit(mavlink2.MAVLink_statustext_message(mavlink2.MAV_SEVERITY_INFO, line.encode("ascii")))
 
     def _send_ack(self, command: int, result: int, msg) -> None:
         self._emit(
             mavlink2.MAVLink_command_ack_message(command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent())
         )
 
-    def _send_param(self, name: str, index: int) -> None:
+    def _send_param(self, name: str, index: int, *, broadcast: bool = False) -> None:
         params = self._ap.params
-        self._emit(
+        (self._broadcast if broadcast else self._emit)(
             mavlink2.MAVLink_param_value_message(
                 name.encode("ascii"), float(params.get(name)), params.mav_type(name), params.count(), index & 0xFFFF
             )  # an unindexed reply's -1 is 65535 in the uint16 field, as from ArduPilot's C
         )
 
-    def _stream_params(self) -> None:
+    def _stream_params(self, channel: Channel) -> None:
         names = self._ap.params.names()
-        batch, self._param_queue = self._param_queue[:PARAMS_PER_UPDATE], self._param_queue[PARAMS_PER_UPDATE:]
+        queue = channel.param_queue
+        batch, channel.param_queue = queue[:PARAMS_PER_UPDATE], queue[PARAMS_PER_UPDATE:]
         for index in batch:
             self._send_param(names[index], index)
 
     # ------------------------------------------------------------------ incoming messages
+    def _channel(self) -> Channel:
+        """The channel whose message is being handled."""
+        assert self._target is not None, "only while handling a received message"
+        return self._target
+
     def _for_us(self, target_system: int, target_component: int) -> bool:
         """MAVLink routing as ArduPilot does it: broadcast (0) or our ids, else not ours."""
         if target_system not in (0, self.sysid) or target_component not in (0, COMPID):
@@ -355,12 +432,13 @@ class MavlinkEndpoint:
             self._send_statustext(mavlink2.MAV_SEVERITY_INFO, f"No ap_message for mavlink id ({msg_id})")
             return mavlink2.MAV_RESULT_DENIED
         now = self._ap.time_s
+        streams = self._channel().streams
         if interval_us == -1:
-            self.streams.set_interval(msg_id, None, now)
+            streams.set_interval(msg_id, None, now)
         elif interval_us == 0:
-            self.streams.reset_interval(msg_id, now)
+            streams.reset_interval(msg_id, now)
         elif 0 < interval_us <= 2**31 - 1:  # MESSAGE_INTERVAL.interval_us is an int32
-            self.streams.set_interval(msg_id, interval_us * 1e-6, now)
+            streams.set_interval(msg_id, interval_us * 1e-6, now)
         else:
             return mavlink2.MAV_RESULT_FAILED
         return mavlink2.MAV_RESULT_ACCEPTED
@@ -369,7 +447,7 @@ class MavlinkEndpoint:
         msg_id = int(p[0])
         if msg_id not in self._senders:
             return mavlink2.MAV_RESULT_FAILED
-        interval = self.streams.interval(msg_id)
+        interval = self._channel().streams.interval(msg_id)
         interval_us = -1 if interval is None else int(round(interval * 1e6))
         self._emit(mavlink2.MAVLink_message_interval_message(msg_id, interval_us))
         return mavlink2.MAV_RESULT_ACCEPTED
@@ -380,11 +458,15 @@ class MavlinkEndpoint:
         msg_id = int(p[0])
         if msg_id not in self._senders:
             return mavlink2.MAV_RESULT_FAILED
-        self._requested.append(msg_id)
+        self._channel().requested.append(msg_id)
         return mavlink2.MAV_RESULT_ACCEPTED
 
     def _cmd_request_autopilot_capabilities(self, p: tuple[float, ...]) -> int:
-        self._requested.append(mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+        self._channel().requested.append(mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+        return mavlink2.MAV_RESULT_ACCEPTED
+
+    def _cmd_send_banner(self, p: tuple[float, ...]) -> int:
+        self._channel().banner_due = True  # after the ACK, as the real SITL sends it
         return mavlink2.MAV_RESULT_ACCEPTED
 
     def _on_set_mode(self, msg) -> None:
@@ -400,7 +482,7 @@ class MavlinkEndpoint:
         if msg.start_stop not in (0, 1):
             return
         rate = float(msg.req_message_rate) if msg.start_stop == 1 else 0.0
-        self.streams.set_stream_rate(msg.req_stream_id, rate, self._ap.time_s)
+        self._channel().streams.set_stream_rate(msg.req_stream_id, rate, self._ap.time_s)
 
     # --- GUIDED set-points (no ACK in ArduPilot); ArduCopter GCS_Mavlink.cpp handle_message_set_* ---
     def _hold(self) -> None:
@@ -518,11 +600,24 @@ class MavlinkEndpoint:
         self._ap.rc_override(channels)
         self._ap.gcs_heartbeat()
 
+    def _on_file_transfer_protocol(self, msg) -> None:
+        if not self._for_us(msg.target_system, msg.target_component):
+            return
+        src = (msg.get_srcSystem(), msg.get_srcComponent())
+        self.ftp.handle(msg.payload, lambda payload: self._emit(
+            mavlink2.MAVLink_file_transfer_protocol_message(0, *src, list(payload))))
+
+    def _on_mission(self, msg) -> None:
+        if self._for_us(msg.target_system, msg.target_component):
+            self.missions.handle(msg)
+
     # --- parameter protocol (GCS_Param.cpp) ---
     def _on_param_request_list(self, msg) -> None:
         if not self._for_us(msg.target_system, msg.target_component):
             return
-        self._param_queue = list(range(self._ap.params.count()))
+        channel = self._channel()
+        channel.param_queue = list(range(self._ap.params.count()))
+        channel.banner_due = True  # GCS_Param.cpp: "requesting parameters is a convenient way to get extra information"
 
     def _on_param_request_read(self, msg) -> None:
         if not self._for_us(msg.target_system, msg.target_component):
@@ -545,4 +640,4 @@ class MavlinkEndpoint:
         if not params.set(name, value):
             self._send_statustext(mavlink2.MAV_SEVERITY_WARNING, f"Param write denied ({name})")
         # GCS::send_parameter_value: the stored value goes to every GCS, with index -1
-        self._send_param(name, -1)
+        self._send_param(name, -1, broadcast=True)

@@ -274,6 +274,7 @@ class ModeHost(Protocol):
     home_enu: tuple[float, float, float] | None
     ekf_ok: bool
     land_complete: bool
+    armed: bool
 
     @property
     def angle_max(self) -> float: ...
@@ -640,7 +641,11 @@ class Rtl(FlightMode):
 
     def enter(self, ap: ModeHost) -> str | None:
         if ap.home_enu is None:
-            return "requires position"
+            if ap.armed:
+                return "requires position"
+            super().enter(ap)  # ModeRTL::init(ignore_checks): accepted disarmed; RTL cannot arm
+            self.state = RtlState.LAND
+            return None
         super().enter(ap)
         p = ap.p
         alt = ap.alt_rel()

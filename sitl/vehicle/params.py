@@ -1,13 +1,20 @@
 """The simulated ArduCopter's parameters: ArduCopter names, units and defaults (4.5/4.6).
 
-Only parameters the simulator obeys are listed; an unknown name is rejected, as a real
+Only parameters the simulator obeys are listed, and a few that ground stations read to know the
+vehicle (FRAME_CLASS and FRAME_TYPE name the frame in the banner and HEARTBEAT; FENCE_ALT_MIN and
+FENCE_MARGIN are stored, not enforced: sitl.vehicle.fence); an unknown name is rejected, as a real
 autopilot answers nothing for it. Units are ArduPilot's (centimetres, cm/s, centidegrees,
 milliseconds where ArduCopter uses them), so a script that tunes a real copter tunes this one.
-Defaults are ArduCopter's except where noted: FS_GCS_ENABLE is 1 (RTL) here, and the battery
-parameters describe the simulated 6S pack with its low-voltage failsafe set to RTL.
+Defaults are ArduCopter's except where noted: FS_GCS_ENABLE is 1 (RTL) here, the battery
+parameters describe the simulated 6S pack with its low-voltage failsafe set to RTL, and FRAME_CLASS
+is 3 (octocopter, the simulated S1000 class; ArduPilot's SITL parameter file sets 1, a quad).
+Each MAVLink type is the one a real ArduCopter's PARAM_VALUE carries (checked against the
+4.7.0-dev SITL in ``../shared/ardupilot``: INT8 for enums and flags, INT16/INT32 for integers,
+REAL32 for floats).
 
 The store keeps a fixed order (PARAM_VALUE's param_index/param_count) and a MAVLink type per
-parameter. ``SYSID_MYGCS`` is accepted as the pre-4.6 name of ``MAV_GCS_SYSID``.
+parameter. ``SYSID_MYGCS`` is accepted as the pre-4.6 name of ``MAV_GCS_SYSID``, and ``MAV_SYSID``
+(ArduCopter 4.7's name) for ``SYSID_THISMAV``.
 """
 
 from __future__ import annotations
@@ -49,6 +56,8 @@ _F = MAV_PARAM_TYPE_REAL32
 PARAM_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("SYSID_THISMAV", 1, _I16, "", "MAVLink system id of this vehicle"),
     ParamSpec("MAV_GCS_SYSID", 255, _I16, "", "system id of the GCS obeyed for overrides and failsafe"),
+    ParamSpec("FRAME_CLASS", 3, _I8, "", "frame class: 1 quad, 2 hexa, 3 octa, 4 octa-quad, 5 Y6, ..."),
+    ParamSpec("FRAME_TYPE", 1, _I8, "", "motor layout: 0 plus, 1 X, 2 V, 3 H, ..."),
     ParamSpec("ANGLE_MAX", 3000, _I16, "cdeg", "maximum lean angle in all modes"),
     ParamSpec("PILOT_SPEED_UP", 250, _I16, "cm/s", "maximum pilot climb rate"),
     ParamSpec("PILOT_SPEED_DN", 0, _I16, "cm/s", "maximum pilot descent rate (0 = PILOT_SPEED_UP)"),
@@ -86,12 +95,19 @@ PARAM_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("GUID_TIMEOUT", 3.0, _F, "s", "GUIDED velocity/attitude target timeout"),
     ParamSpec("BATT_CAPACITY", 10000, _I32, "mAh", "battery capacity for remaining-percent"),
     ParamSpec("BATT_LOW_VOLT", 21.0, _F, "V", "low-battery failsafe voltage (0 = off)"),
-    ParamSpec("BATT_LOW_MAH", 0, _I32, "mAh", "low-battery failsafe remaining capacity (0 = off)"),
+    ParamSpec("BATT_LOW_MAH", 0, _F, "mAh", "low-battery failsafe remaining capacity (0 = off)"),
     ParamSpec("BATT_LOW_TIMER", 10, _I8, "s", "time below BATT_LOW_VOLT before the failsafe"),
     ParamSpec("BATT_FS_LOW_ACT", 2, _I8, "", "low-battery action: 0 warn, 1 LAND, 2/3 RTL, 4 LAND"),
+    ParamSpec("FENCE_ENABLE", 0, _I8, "", "geofence on (1) or off (0)"),
+    ParamSpec("FENCE_TYPE", 7, _I8, "", "fences configured: bit 0 max altitude, 1 circle, 2 polygon, 3 min altitude"),
+    ParamSpec("FENCE_ACTION", 1, _I8, "", "on a breach: 0 report, 1 RTL or LAND, 2 LAND, 3/5 RTL, 4 BRAKE"),
+    ParamSpec("FENCE_RADIUS", 300, _F, "m", "circular fence radius around home"),
+    ParamSpec("FENCE_ALT_MAX", 100, _F, "m", "maximum altitude above home"),
+    ParamSpec("FENCE_ALT_MIN", -10, _F, "m", "minimum altitude above home"),
+    ParamSpec("FENCE_MARGIN", 2, _F, "m", "distance kept from the fence by avoidance"),
 )
 
-PARAM_ALIASES: dict[str, str] = {"SYSID_MYGCS": "MAV_GCS_SYSID"}
+PARAM_ALIASES: dict[str, str] = {"SYSID_MYGCS": "MAV_GCS_SYSID", "MAV_SYSID": "SYSID_THISMAV"}
 
 
 class ParamStore:

@@ -34,10 +34,11 @@ from scipy.spatial.transform import Rotation  # noqa: E402
 
 from chaser_bt.geo import enu_to_ned, quat_xyzw_to_wxyz  # noqa: E402
 from sitl.vehicle.autopilot import Autopilot  # noqa: E402
+from sitl.vehicle.fence import fence_enabled, fence_present  # noqa: E402
 
 __all__ = [
     "STREAM_GROUPS", "DEFAULT_STREAM_RATE_HZ", "StreamScheduler", "TelemetryEncoder",
-    "CAPABILITIES", "FLIGHT_SW_VERSION",
+    "CAPABILITIES", "FLIGHT_SW_VERSION", "FIRMWARE_STRING", "BUILD_ID", "FRAME_CLASSES", "banner_lines",
 ]
 
 # MAV_DATA_STREAM id -> the message ids ArduCopter sends in it (only those this simulator produces).
@@ -168,14 +169,51 @@ class StreamScheduler:
 
 # AUTOPILOT_VERSION.flight_sw_version: major << 24 | minor << 16 | patch << 8 | FIRMWARE_VERSION_TYPE
 FLIGHT_SW_VERSION = (4 << 24) | (6 << 16) | (0 << 8) | mavlink2.FIRMWARE_VERSION_TYPE_OFFICIAL
+FIRMWARE_STRING = "ArduCopter V4.6.0"
+# flight_custom_version: ArduPilot puts the first 8 characters of its git hash here and in the
+# banner's "(...)"; this build is chaser-bt's simulator, and says so in the same 8 characters.
+BUILD_ID = "chaserbt"
+# The bits ArduCopter sets (GCS_MAVLINK::capabilities(); the 4.7.0-dev SITL reports 64495) less
+# those for what the simulator lacks: TERRAIN, FLIGHT_TERMINATION, COMPASS_CALIBRATION. FTP: the
+# parameter file only (sitl.vehicle.mavftp), which is what ground stations use it for.
 CAPABILITIES = (
     mavlink2.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+    | mavlink2.MAV_PROTOCOL_CAPABILITY_FTP
     | mavlink2.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
+    | mavlink2.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT
+    | mavlink2.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+    | mavlink2.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
+    | mavlink2.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY
     | mavlink2.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
     | mavlink2.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
     | mavlink2.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
     | mavlink2.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
 )
+
+# FRAME_CLASS -> HEARTBEAT type and the banner's frame name (AP_MotorsMatrix get_frame_string /
+# Copter get_frame_mav_type); FRAME_TYPE -> the banner's layout name (get_type_string).
+FRAME_CLASSES: dict[int, tuple[int, str]] = {
+    1: (mavlink2.MAV_TYPE_QUADROTOR, "QUAD"),
+    2: (mavlink2.MAV_TYPE_HEXAROTOR, "HEXA"),
+    3: (mavlink2.MAV_TYPE_OCTOROTOR, "OCTA"),
+    4: (mavlink2.MAV_TYPE_OCTOROTOR, "OCTAQUAD"),
+    5: (mavlink2.MAV_TYPE_HEXAROTOR, "Y6"),
+    12: (mavlink2.MAV_TYPE_DODECAROTOR, "DODECA_HEXA"),
+    14: (mavlink2.MAV_TYPE_DECAROTOR, "DECA"),
+}
+FRAME_TYPES: dict[int, str] = {0: "PLUS", 1: "X", 2: "V", 3: "H", 4: "V_TAIL", 5: "A_TAIL", 10: "Y6B",
+                               11: "Y6F", 12: "BF_X", 13: "DJI_X", 14: "CW_X", 18: "BF_X_REV"}
+
+
+def banner_lines(frame_class: int, frame_type: int) -> list[str]:
+    """The STATUSTEXTs of GCS_MAVLINK_Copter::send_banner: firmware and build, then the frame.
+
+    ArduPilot sends a line with the board's unique id between them when the board has one; the
+    simulated board has none, so that line is left out, as ArduPilot leaves it out then.
+    """
+    name = FRAME_CLASSES.get(frame_class, (0, "UNKNOWN"))[1]
+    layout = FRAME_TYPES.get(frame_type, "UNKNOWN")
+    return [f"{FIRMWARE_STRING} ({BUILD_ID})", f"Frame: {name}/{layout}"]
 
 # Copter mode numbers whose controller holds horizontal position: HEARTBEAT's GUIDED_ENABLED flag
 # (ArduCopter base_mode(): pos_control->is_active_xy()) and SYS_STATUS' XY control bit.
@@ -187,8 +225,11 @@ _SENSORS = (
     | mavlink2.MAV_SYS_STATUS_SENSOR_3D_ACCEL
     | mavlink2.MAV_SYS_STATUS_SENSOR_3D_MAG
     | mavlink2.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
-    | mavlink2.MAV_SYS_STATUS_SENSOR_BATTERY
+    | mavlink2.MAV_SYS_STATUS_SENSOR_RC_RECEIVER  # the SITL's RC input: present, no radio failsafe
 )
+_BATTERY = mavlink2.MAV_SYS_STATUS_SENSOR_BATTERY
+_GEOFENCE = mavlink2.MAV_SYS_STATUS_GEOFENCE
+_PROXIMITY = mavlink2.MAV_SYS_STATUS_SENSOR_PROXIMITY
 _GPS = mavlink2.MAV_SYS_STATUS_SENSOR_GPS
 _AHRS = mavlink2.MAV_SYS_STATUS_AHRS
 _PREARM = mavlink2.MAV_SYS_STATUS_PREARM_CHECK
@@ -200,7 +241,7 @@ _RATE_ATT_YAW = (
 _Z_CTRL = mavlink2.MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL
 _XY_CTRL = mavlink2.MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL
 _MOTORS = mavlink2.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
-_SYS_PRESENT = _SENSORS | _GPS | _AHRS | _PREARM | _RATE_ATT_YAW | _Z_CTRL | _XY_CTRL | _MOTORS
+_SYS_PRESENT = _SENSORS | _BATTERY | _GPS | _AHRS | _PREARM | _RATE_ATT_YAW | _Z_CTRL | _XY_CTRL | _MOTORS
 
 # EKF_STATUS_REPORT: attitude and vertical state come from IMU and baro at boot; the horizontal
 # (GPS-aided) solution only once the EKF has its absolute position (ekf_ok).
@@ -342,28 +383,57 @@ class TelemetryEncoder:
             return mavlink2.MAV_STATE_STANDBY
         return mavlink2.MAV_STATE_ACTIVE
 
-    def _send_sys_status(self) -> None:
+    def sensor_bits(self) -> tuple[int, int, int]:
+        """SYS_STATUS (present, enabled, health), as GCS::update_sensor_status_flags and
+        GCS_Copter::update_vehicle_sensor_status_flags set them for what the simulator models.
+
+        Motor outputs are enabled armed or not (no safety switch, as in ArduPilot's SITL); the
+        position and altitude controllers are enabled and healthy in the modes that run them; the
+        pre-arm bit is enabled while ARMING_CHECK is non-zero; the battery is unhealthy once its
+        failsafe has fired; the geofence follows :mod:`sitl.vehicle.fence`; PROXIMITY is healthy
+        (no rangefinder connected, as ArduCopter reports it). LOGGING, TERRAIN and PROPULSION,
+        which the real SITL also reports, are absent: the simulator keeps no onboard log, no
+        terrain database and no ESC telemetry.
+        """
         ap = self._ap
-        m = self._m_sys_status
+        p = ap.p
         mode = ap.mode_number
-        enabled = _SENSORS | _GPS | _AHRS | _PREARM | _RATE_ATT_YAW
+        present = _SYS_PRESENT
+        enabled = _SENSORS | _BATTERY | _GPS | _AHRS | _RATE_ATT_YAW | _MOTORS
+        health = _SENSORS | _RATE_ATT_YAW | _MOTORS | _PROXIMITY
         if mode in _ALTITUDE_MODES:
             enabled |= _Z_CTRL
+            health |= _Z_CTRL
         if mode in _POSITION_MODES:
             enabled |= _XY_CTRL
-        if ap.armed:
-            enabled |= _MOTORS
-        health = _SENSORS | _RATE_ATT_YAW | _Z_CTRL | _MOTORS
+            health |= _XY_CTRL
+        if p["ARMING_CHECK"] != 0:
+            enabled |= _PREARM
         if ap.gps_ok:
             health |= _GPS
         if ap.ekf_ok:
-            health |= _AHRS | _XY_CTRL
+            health |= _AHRS
         if ap.prearm_ok:
             health |= _PREARM  # how ArduPilot tells a GCS it is ready to arm
+        if not ap.fs_battery:
+            health |= _BATTERY
+        polygon = ap.missions.polygon_points()
+        if fence_present(p, polygon):
+            present |= _GEOFENCE
+            if fence_enabled(p, polygon):
+                enabled |= _GEOFENCE
+            if not ap.fence_breaches:
+                health |= _GEOFENCE
+        else:
+            health |= _GEOFENCE  # AC_Fence::sys_status_failed(): never failed when not present
+        return present, enabled, health
+
+    def _send_sys_status(self) -> None:
+        ap = self._ap
+        m = self._m_sys_status
         batt = ap.battery()
-        m.onboard_control_sensors_present = _SYS_PRESENT
-        m.onboard_control_sensors_enabled = enabled
-        m.onboard_control_sensors_health = health
+        (m.onboard_control_sensors_present, m.onboard_control_sensors_enabled,
+         m.onboard_control_sensors_health) = self.sensor_bits()
         m.load = 200  # 20 % main-loop load, a typical SITL figure
         m.voltage_battery = _u16(batt.voltage_v * 1000.0)
         m.current_battery = _i16(batt.current_a * 100.0)
@@ -507,6 +577,7 @@ class TelemetryEncoder:
     def _send_autopilot_version(self) -> None:
         self._emit(
             mavlink2.MAVLink_autopilot_version_message(
-                CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, 0
+                CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0, list(BUILD_ID.encode("ascii")), [0] * 8, [0] * 8,
+                0, 0, 0
             )
         )

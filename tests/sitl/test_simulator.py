@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import pytest
 from mavlink_gcs import PipeGcs, mav, quick_scenario
 
@@ -43,16 +45,47 @@ def test_a_different_seed_changes_the_noise_on_the_wire():
 
 
 def test_every_attached_port_gets_the_same_telemetry_and_commands_from_any_port_work():
+    # each port is its own link, as ArduCopter gives each client one (../shared/ardupilot/README):
+    # the same default telemetry on both, a command from b obeyed, its ACK to b only
     sim = Simulator(quick_scenario(), 0)
     a, b = PipeGcs(sim), PipeGcs(sim, sysid=254)
     a.run(3.5)
     b.poll()
     assert [m.get_type() for _, m in a.log] == [m.get_type() for _, m in b.log]
     b.command(mav.MAV_CMD_DO_SET_MODE, mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 5)
-    ack = a.wait_for("COMMAND_ACK", 1.0)  # the ACK is broadcast, addressed to b
+    assert a.wait_for("HEARTBEAT", 1.5, lambda m: m.custom_mode == 5) is not None
     b.poll()
-    assert (ack.result, ack.target_system) == (mav.MAV_RESULT_ACCEPTED, 254)
     assert b.of_type("COMMAND_ACK")[-1].target_system == 254
+    assert a.of_type("COMMAND_ACK") == []
+
+
+def test_message_rates_are_set_per_port():
+    # ArduCopter: SET_MESSAGE_INTERVAL and REQUEST_DATA_STREAM apply to the link they came in on
+    sim = Simulator(quick_scenario(), 0)
+    a, b = PipeGcs(sim), PipeGcs(sim, sysid=254)
+    a.command(mav.MAV_CMD_SET_MESSAGE_INTERVAL, mav.MAVLINK_MSG_ID_ATTITUDE, 20_000)  # 50 Hz
+    b.send(mav.MAVLink_request_data_stream_message(1, 1, mav.MAV_DATA_STREAM_ALL, 0, 0))  # b: streams off
+    a.run(0.1)
+    b.poll()
+    t0 = sim.time_s + 1e-6  # what was read after this
+    a.run(2.0)
+    b.poll()
+    assert len(a.of_type("ATTITUDE", t0)) == pytest.approx(100, abs=2)
+    assert b.of_type("ATTITUDE", t0) == [] and b.of_type("GLOBAL_POSITION_INT", t0) == []
+    assert len(b.of_type("HEARTBEAT", t0)) == 2  # not a stream: 1 Hz on every link
+    assert len(a.of_type("GLOBAL_POSITION_INT", t0)) == pytest.approx(8, abs=1)  # a keeps its 4 Hz
+
+
+def test_each_port_numbers_its_own_packets():
+    # per-link sequence numbers: no gaps on one client for what another was sent
+    sim = Simulator(quick_scenario(), 0)
+    a, b = PipeGcs(sim), PipeGcs(sim, sysid=254)
+    a.run(0.5)
+    for _ in range(5):
+        b.command(mav.MAV_CMD_REQUEST_MESSAGE, mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+    a.run(1.0)
+    seqs = [m.get_seq() for _, m in a.log if m.get_srcSystem() == 1]
+    assert all((y - x) % 256 == 1 for x, y in itertools.pairwise(seqs))
 
 
 def test_detached_port_hears_nothing_more():

@@ -132,8 +132,33 @@ def test_disarm_delay_zero_never_disarms(make_ap, run_for):
     assert ap.armed
 
 
-def test_modes_needing_a_position_are_refused_before_the_ekf_is_ready(make_ap):
+def test_any_mode_is_accepted_while_disarmed_and_the_checks_come_at_arming(make_ap):
+    # ArduCopter Copter::set_mode: ignore_checks = !motors->armed(), "we rely on the arming check";
+    # the 4.7.0-dev SITL in ../shared/ardupilot accepted GUIDED (ACK 0) 3 s after boot, before
+    # "EKF3 IMU0 is using GPS". (This test used to assert the refusal, which was the defect.)
     ap = make_ap(boot=BootParams())
+    for mode, name in ((GUIDED, "GUIDED"), (LOITER, "LOITER"), (RTL, "RTL"), (BRAKE, "BRAKE")):
+        r = ap.request_mode(mode)
+        assert r.accepted and ap.mode == name
+    assert ap.request_mode(GUIDED).accepted
+    r = ap.request_arm(True)
+    assert not r.accepted and r.text == "PreArm: Need 3D Fix"  # the arming checks refuse it instead
+    assert not ap.armed and ap.mode == "GUIDED"
+
+
+def test_without_arming_checks_a_position_mode_still_needs_a_position_to_arm(make_ap):
+    # AP_Arming_Copter::mandatory_gps_checks: the mode requires GPS and there is no position estimate
+    ap = make_ap(boot=BootParams(), params={"ARMING_CHECK": 0})
+    assert ap.request_mode(LOITER).accepted
+    r = ap.request_arm(True)
+    assert not r.accepted and r.text == "PreArm: Need Position Estimate"
+
+
+def test_modes_needing_a_position_are_refused_while_armed_without_one(make_ap):
+    # armed (STABILIZE needs no position; ARMING_CHECK 0 skips the GPS checks), Copter::set_mode
+    # refuses a position mode: "Mode change to GUIDED failed: requires position"
+    ap = make_ap(boot=BootParams(), params={"ARMING_CHECK": 0})
+    assert ap.request_arm(True).accepted
     for mode, name in ((GUIDED, "GUIDED"), (LOITER, "LOITER"), (RTL, "RTL"), (BRAKE, "BRAKE")):
         r = ap.request_mode(mode)
         assert not r.accepted

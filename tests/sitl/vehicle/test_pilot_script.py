@@ -101,9 +101,13 @@ def test_ground_station_changes_the_mode_at_its_time():
 
 
 def test_a_refused_ground_station_mode_is_reported_not_forced():
-    # GUIDED before the EKF has a position: ArduCopter refuses, and says so.
-    sc = dataclasses.replace(_scenario(), ground_station=(GroundStationEvent(0.5, "GUIDED"),))
+    # GUIDED while armed before the EKF has a position: ArduCopter refuses, and says so. (Disarmed
+    # it would accept it: Copter::set_mode skips the checks then, so the vehicle is armed first, in
+    # STABILIZE with ARMING_CHECK 0, which needs no position.)
+    sc = dataclasses.replace(_scenario(params={"ARMING_CHECK": 0}),
+                             ground_station=(GroundStationEvent(0.5, "GUIDED"),))
     ap = Autopilot(sc, np.random.default_rng(0))
+    assert ap.request_arm(True).accepted and not ap.ekf_ok
     _run(ap, 1.0)
     assert ap.mode == "STABILIZE"
     assert any("ground station: GUIDED refused" in text for _, text in ap.pop_statustexts())
