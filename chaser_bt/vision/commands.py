@@ -58,6 +58,14 @@ def evaluate_folder(data_dir: str | Path, weights: str | Path, image_size: int, 
             "iou": m.iou, "precision": m.precision, "recall": m.recall, "f1": m.f1, "fps": fps}
 
 
+def probability(text: str) -> float:
+    """A share in [0, 1]."""
+    value = non_negative_float(text)
+    if value > 1.0:
+        raise argparse.ArgumentTypeError(f"expected a share in [0, 1], got {value}")
+    return value
+
+
 def image_size(text: str) -> int:
     """A detector input size: a positive multiple of 32 px."""
     value = positive_int(text)
@@ -75,7 +83,8 @@ def _train(args: argparse.Namespace) -> int:
     try:
         out = train_detector(TrainConfig(args.data, args.out, steps=args.steps, batch=args.batch, seed=args.seed, threads=args.threads,
                                          lr=args.lr, init_weights=args.init or "", small_box_px=args.small_box_px,
-                                         small_weight=args.small_weight, obj_iou=args.obj_iou), resume=not args.fresh)
+                                         small_weight=args.small_weight, obj_iou=args.obj_iou, mixup=args.mixup,
+                                         mixup_beta=args.mixup_beta, blur=args.blur), resume=not args.fresh)
     except (ValueError, FileNotFoundError) as e:
         print(f"chaser-bt: {e}", file=sys.stderr)
         return 2
@@ -199,6 +208,12 @@ def add_command(subparsers) -> None:
     t.add_argument("--small-weight", type=positive_float, default=3.0, help="how many times more often such images are drawn (default 3)")
     t.add_argument("--obj-iou", type=non_negative_float, default=0.0, metavar="G",
                    help="objectness target 1 - G + G * IoU of the predicted box (YOLOv5's gr; default 0)")
+    t.add_argument("--mixup", type=probability, default=0.1, metavar="P",
+                   help="share of mosaics blended with a second one, boxes of both (YOLOv4/v5's mixup; default 0.1)")
+    t.add_argument("--mixup-beta", type=positive_float, default=32.0, metavar="A",
+                   help="mixup weight drawn from Beta(A, A); 32 keeps it near 0.5 (default 32)")
+    t.add_argument("--blur", type=probability, default=0.3, metavar="P",
+                   help="share of mosaics blurred, half by motion (3-9 px, any direction), half Gaussian (sigma 0.5-1.5 px) (default 0.3)")
     t.set_defaults(handler=_train)
     help_ = "train the box refiner (second stage) on YOLO folders of full-size frames"
     r = subparsers.add_parser("train-refiner", help=help_, description=help_)

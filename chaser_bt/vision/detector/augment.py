@@ -1,4 +1,5 @@
-"""Training augmentations in the paper's style (appendix model card: HSV, scale, mosaic as in darknet/YOLO).
+"""Training augmentations in the paper's style (appendix model card: HSV, scale, mosaic as in darknet/YOLO;
+mixup and blur as in YOLOv4/v5's bag of freebies).
 
 Boxes are (N, 5) float arrays of ``class, x0, y0, x1, y1`` in pixels. Every function takes the
 numpy Generator it draws from, so a seeded run repeats exactly.
@@ -11,7 +12,8 @@ from typing import Sequence
 import cv2
 import numpy as np
 
-__all__ = ["hsv_jitter", "random_scale", "mosaic", "letterbox", "flip_horizontal"]
+__all__ = ["hsv_jitter", "random_scale", "mosaic", "mixup", "motion_blur", "gaussian_blur", "random_blur", "letterbox",
+           "flip_horizontal"]
 
 
 def hsv_jitter(image: np.ndarray, rng: np.random.Generator, hue: float = 0.03, sat: float = 0.5, val: float = 0.4) -> np.ndarray:
@@ -109,3 +111,51 @@ def mosaic(images: Sequence[np.ndarray], boxes: Sequence[np.ndarray], size: int,
     allb[:, [1, 3]] -= ox
     allb[:, [2, 4]] -= oy
     return crop, clip_boxes(allb, size, size)
+
+
+def mixup(image_a: np.ndarray, boxes_a: np.ndarray, image_b: np.ndarray, boxes_b: np.ndarray,
+          weight: float) -> tuple[np.ndarray, np.ndarray]:
+    """YOLOv4/v5's mixup of two same-size images: ``weight * a + (1 - weight) * b`` (rounded to uint8)
+    and the union of both images' boxes (every object stays a target)."""
+    if image_a.shape != image_b.shape:
+        raise ValueError(f"mixup needs images of one size, got {image_a.shape} and {image_b.shape}")
+    if not 0.0 <= weight <= 1.0:
+        raise ValueError(f"mixup weight must be in [0, 1], got {weight}")
+    mixed = weight * image_a.astype(np.float32) + (1.0 - weight) * image_b.astype(np.float32)
+    boxes = np.concatenate([boxes_a.reshape(-1, 5), boxes_b.reshape(-1, 5)])
+    return np.clip(np.rint(mixed), 0, 255).astype(np.uint8), boxes
+
+
+def motion_kernel(length: int, angle_rad: float) -> np.ndarray:
+    """A normalised line kernel of ``length`` px (odd size) along ``angle_rad`` (0 = along x)."""
+    length = max(int(length), 1)
+    size = length if length % 2 else length + 1
+    k = np.zeros((size, size), np.float32)
+    c = (size - 1) / 2.0
+    for t in np.linspace(-(length - 1) / 2.0, (length - 1) / 2.0, length):
+        k[int(round(c + t * np.sin(angle_rad))), int(round(c + t * np.cos(angle_rad)))] += 1.0
+    return k / k.sum()
+
+
+def motion_blur(image: np.ndarray, length: int, angle_rad: float) -> np.ndarray:
+    """Blur along a line of ``length`` px at ``angle_rad`` (camera or target motion over the exposure);
+    the kernel sums to one, so the mean brightness is kept (up to the reflected border)."""
+    if length <= 1:
+        return image.copy()
+    return cv2.filter2D(image, -1, motion_kernel(length, angle_rad), borderType=cv2.BORDER_REFLECT_101)
+
+
+def gaussian_blur(image: np.ndarray, sigma_px: float) -> np.ndarray:
+    """Gaussian blur of ``sigma_px`` (defocus, soft optics); the mean brightness is kept."""
+    if sigma_px <= 0:
+        return image.copy()
+    return cv2.GaussianBlur(image, (0, 0), sigma_px, borderType=cv2.BORDER_REFLECT_101)
+
+
+def random_blur(image: np.ndarray, rng: np.random.Generator, motion_px: tuple[int, int] = (3, 9),
+                sigma_px: tuple[float, float] = (0.5, 1.5), motion_share: float = 0.5) -> np.ndarray:
+    """Motion blur (length uniform in ``motion_px``, any direction) with probability ``motion_share``,
+    else a Gaussian blur (sigma uniform in ``sigma_px``). Boxes are unchanged."""
+    if rng.random() < motion_share:
+        return motion_blur(image, int(rng.integers(motion_px[0], motion_px[1] + 1)), float(rng.uniform(0.0, np.pi)))
+    return gaussian_blur(image, float(rng.uniform(*sigma_px)))

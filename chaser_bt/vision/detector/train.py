@@ -2,7 +2,9 @@
 standard schedule and augmentation). Seeded, resumable from its checkpoint, with a progress line.
 
 Images are letterboxed once to the detector scale (``image_size`` / longest side) and kept in memory;
-each batch is made of mosaics (4 images, random scale) with HSV jitter and horizontal flips.
+each batch is made of mosaics (4 images, random scale), with probability ``mixup`` blended with a
+second mosaic (weight Beta(``mixup_beta``, ``mixup_beta``), boxes of both), HSV jitter, with
+probability ``blur`` a motion or Gaussian blur, and horizontal flips.
 Optimiser: AdamW with a linear warm-up and a cosine decay; an exponential moving average of the
 weights (YOLOv5) is what gets saved. ``init_weights`` fine-tunes from a saved model (same classes)
 instead of starting from scratch; ``small_box_px`` > 0 draws the images holding a box narrower than
@@ -24,7 +26,7 @@ import cv2
 import numpy as np
 import torch
 
-from chaser_bt.vision.detector.augment import flip_horizontal, hsv_jitter, mosaic
+from chaser_bt.vision.detector.augment import flip_horizontal, hsv_jitter, mixup, mosaic, random_blur
 from chaser_bt.vision.detector.loss import detection_loss
 from chaser_bt.vision.detector.model import DetectorConfig, TinyYolo
 
@@ -54,6 +56,11 @@ class TrainConfig:
     small_box_px: float = 0.0
     small_weight: float = 3.0
     obj_iou: float = 0.0
+    mixup: float = 0.1
+    mixup_beta: float = 32.0
+    blur: float = 0.3
+    blur_motion_px: tuple[int, int] = (3, 9)
+    blur_sigma_px: tuple[float, float] = (0.5, 1.5)
 
 
 def load_yolo_folder(data_dir: str | Path, image_size: int) -> tuple[list[np.ndarray], list[np.ndarray], tuple[str, ...]]:
@@ -94,12 +101,22 @@ def sampling_weights(boxes: list[np.ndarray], small_box_px: float, small_weight:
     return w / w.sum()
 
 
+def _mosaic(images: list[np.ndarray], boxes: list[np.ndarray], cfg: TrainConfig, rng: np.random.Generator,
+            p: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    idx = rng.integers(len(images), size=4) if p is None else rng.choice(len(images), size=4, p=p)
+    return mosaic([images[i] for i in idx], [boxes[i] for i in idx], cfg.crop, rng, cfg.scale_range, focus=0.8)
+
+
 def _batch(images, boxes, cfg: TrainConfig, rng: np.random.Generator, p: np.ndarray | None = None) -> tuple[torch.Tensor, list[torch.Tensor]]:
     xs, ts = [], []
     for _ in range(cfg.batch):
-        idx = rng.integers(len(images), size=4) if p is None else rng.choice(len(images), size=4, p=p)
-        img, b = mosaic([images[i] for i in idx], [boxes[i] for i in idx], cfg.crop, rng, cfg.scale_range, focus=0.8)
+        img, b = _mosaic(images, boxes, cfg, rng, p)
+        if cfg.mixup > 0 and rng.random() < cfg.mixup:  # no draw when off: older recipes repeat exactly
+            img2, b2 = _mosaic(images, boxes, cfg, rng, p)
+            img, b = mixup(img, b, img2, b2, float(rng.beta(cfg.mixup_beta, cfg.mixup_beta)))
         img = hsv_jitter(img, rng)
+        if cfg.blur > 0 and rng.random() < cfg.blur:
+            img = random_blur(img, rng, cfg.blur_motion_px, cfg.blur_sigma_px)
         if rng.random() < 0.5:
             img, b = flip_horizontal(img, b)
         xs.append(img)
