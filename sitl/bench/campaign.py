@@ -234,14 +234,18 @@ def followed_s(trace: FlightTrace | None, t_acquire_event: str = "acquired") -> 
 
 
 def _worker_init() -> None:
-    """A worker process: one thread for torch and BLAS (the runs are the parallelism), MAVLink 2.
+    """A worker process: one thread for torch, BLAS and OpenCV (the runs are the parallelism), MAVLink 2.
 
     Set before torch is imported (it reads ``OMP_NUM_THREADS`` then), and again on torch itself
-    in case it already was.
+    in case it already was. OpenCV's own pool (the renderer's warps) would otherwise start a thread
+    per core in every worker, and the workers would take the cores from each other.
     """
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
         os.environ[var] = "1"
     os.environ.setdefault("MAVLINK20", "1")
+    import cv2
+
+    cv2.setNumThreads(1)
     torch = sys.modules.get("torch")
     if torch is not None and torch.get_num_threads() != 1:
         torch.set_num_threads(1)
