@@ -97,7 +97,7 @@ def test_the_diff_sees_a_node_swapped_outside_a_subtree_slot():
     assert model_diff(sar, sar)[0] == []
     # A parameter and a subtree choice are seen as such.
     changed = copy.deepcopy(sar)
-    launch = changed.trees[changed.main].root.children[1].children[1].children[3].children[0]
+    launch = changed.trees[changed.main].root.children[1].children[1].children[2].children[0]  # launch, then search
     launch.ports["altitude_m"].value = 40.0
     assert [k for k, _ in model_diff(sar, changed)[0]] == ["param"]
     launch.subtree.tree_id = "SarCue"
