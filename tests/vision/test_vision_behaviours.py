@@ -74,14 +74,19 @@ def test_vision_pipeline_writes_the_estimate_and_target_in_view_follows_its_age(
     assert vision.root.status == Status.FAILURE
 
 
-def test_range_from_telemetry_when_remapped():
-    clock = ManualClock(5.0)
+def _with_telemetry_25_m_out() -> py_trees.blackboard.Client:
+    """A blackboard with the vehicle's state and the target's telemetry 25 m east of the camera."""
     bb = py_trees.blackboard.Client(name="test")
     bb.register_key("/vehicle/state", access=py_trees.common.Access.WRITE)
     bb.register_key("/target/telemetry", access=py_trees.common.Access.WRITE)
     bb.register_key("/target/estimate", access=py_trees.common.Access.READ)
     bb.set("/vehicle/state", _state())
     bb.set("/target/telemetry", TargetCue(t=5.0, position_enu=np.array([25.0, 0.0, 20.0]), source="telemetry"))
+    return bb
+
+
+def test_range_from_telemetry_when_remapped():
+    clock, bb = ManualClock(5.0), _with_telemetry_25_m_out()
     vision = _tree('VisionPipeline: {range_cue: "{@target/telemetry}"}', _Detector(), clock)
     vision.tick()
     assert bb.get("/target/estimate").range_m == pytest.approx(25.0, abs=0.01)
@@ -89,13 +94,7 @@ def test_range_from_telemetry_when_remapped():
 
 def test_range_from_the_box_unless_a_range_cue_is_remapped():
     """Nothing reads the target's own telemetry by default: written but not remapped, it changes nothing."""
-    clock = ManualClock(5.0)
-    bb = py_trees.blackboard.Client(name="test")
-    bb.register_key("/vehicle/state", access=py_trees.common.Access.WRITE)
-    bb.register_key("/target/telemetry", access=py_trees.common.Access.WRITE)
-    bb.register_key("/target/estimate", access=py_trees.common.Access.READ)
-    bb.set("/vehicle/state", _state())
-    bb.set("/target/telemetry", TargetCue(t=5.0, position_enu=np.array([25.0, 0.0, 20.0]), source="telemetry"))
+    clock, bb = ManualClock(5.0), _with_telemetry_25_m_out()
     vision = _tree("VisionPipeline: {}", _Detector(), clock)
     vision.tick()
     assert bb.get("/target/estimate").range_m != pytest.approx(25.0, abs=0.5)
