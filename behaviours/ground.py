@@ -56,6 +56,8 @@ class StreamToGround(VehicleBehaviour):
         super().setup(**kwargs)
         camera, radar = kwargs.get("camera"), kwargs.get("radar")
         self.camera: CameraSensor | None = camera if isinstance(camera, CameraSensor) else None
+        if self.camera is not None:
+            self.camera.whole_frames = True  # the video shows whole frames, not the pipeline's regions of interest
         self.radar: RadarFeed | None = radar if isinstance(radar, RadarFeed) else None
         self.sender: GroundSender | None = None
         self._host: str | None = None

@@ -29,6 +29,11 @@ class FocusWindow:
     side_px: int
     zoom: float
 
+    @property
+    def region(self) -> tuple[int, int, int, int]:
+        """The window in frame pixels: (x0, y0, x1, y1)."""
+        return (self.x0, self.y0, self.x0 + self.side_px, self.y0 + self.side_px)
+
     def crop(self, image: np.ndarray) -> np.ndarray:
         """The window, resized to the detector's input (``side_px * zoom`` square)."""
         out = int(round(self.side_px * self.zoom))

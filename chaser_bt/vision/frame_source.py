@@ -1,7 +1,10 @@
 """Where frames come from: the FrameSource protocol and its cv2.VideoCapture implementation.
 
 A mission asks a source for the frame at mission time ``t``; a live or recorded camera returns its
-next frame stamped with ``t``. The simulator's rendered camera (``sitl.world.camera.frame_source``)
+next frame stamped with ``t``. A source that can read out regions of interest (the simulator's
+renderer: drawing only what the pipeline will look at is most of a rehearsal's speed) says so with
+``reads_regions`` and takes ``regions`` in :meth:`FrameSource.read`; the frame it returns is real
+inside them (``Frame.regions``) and a flat fill elsewhere. The simulator's rendered camera (``sitl.world.camera.frame_source``)
 implements the same protocol; a video file, a device index or any URL OpenCV opens (RTSP, HTTP,
 GStreamer pipeline) go through :class:`VideoCaptureSource`.
 """
@@ -14,16 +17,21 @@ from typing import Protocol, runtime_checkable
 import cv2
 import numpy as np
 
-__all__ = ["Frame", "FrameSource", "VideoCaptureSource"]
+__all__ = ["Frame", "FrameSource", "Region", "VideoCaptureSource", "reads_regions"]
+
+#: A rectangle of the frame, pixels: (x0, y0, x1, y1), x1 and y1 excluded.
+Region = tuple[int, int, int, int]
 
 
 @dataclass(frozen=True)
 class Frame:
-    """One BGR image (height x width x 3, uint8) taken at mission time ``t`` (s)."""
+    """One BGR image (height x width x 3, uint8) taken at mission time ``t`` (s); ``regions``: the
+    only parts that show the scene when the source was asked for regions of interest (None: all of it)."""
 
     t: float
     image: np.ndarray
     index: int
+    regions: tuple[Region, ...] | None = None
 
 
 @runtime_checkable
@@ -33,6 +41,11 @@ class FrameSource(Protocol):
         ...
 
     def close(self) -> None: ...
+
+
+def reads_regions(source: object) -> bool:
+    """Whether ``source.read`` takes ``regions=`` (a real camera reads whole frames; the renderer need not)."""
+    return bool(getattr(source, "reads_regions", False))
 
 
 class VideoCaptureSource:

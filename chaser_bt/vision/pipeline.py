@@ -26,13 +26,13 @@ from scipy.spatial.transform import Rotation
 from chaser_bt.cue import TargetCue, TargetEstimate
 from chaser_bt.vision.camera import CameraModel
 from chaser_bt.vision.detection import Detection
-from chaser_bt.vision.focus import focus_window
-from chaser_bt.vision.frame_source import Frame, FrameSource
+from chaser_bt.vision.focus import FocusWindow, focus_window
+from chaser_bt.vision.frame_source import Frame, FrameSource, Region, reads_regions
 from chaser_bt.vision.projection import AttitudeSmoother, Projector
 from chaser_bt.vision.range import TARGET_SPAN_M, RangeFilter, range_from_box
 from chaser_bt.vision.trackers import Track, TrackerBank
 
-__all__ = ["OwnshipPose", "PipelineConfig", "VisionPipeline", "CameraSensor", "ground_range"]
+__all__ = ["OwnshipPose", "PipelineConfig", "FramePlan", "VisionPipeline", "CameraSensor", "ground_range"]
 
 
 @dataclass(frozen=True)
@@ -71,6 +71,8 @@ class PipelineConfig:
         cue_gate_deg: a track's bearing may differ from the cue's by this much, plus three sigma of the
             cue's position error seen from the camera.
         detector_input_px: the detector's square input (the focus window's size in detector pixels).
+        track_margin_px: the part of a frame the trackers read around a track's box: this much on each
+            side, or the box's own size if larger (:attr:`FramePlan.regions`).
         reseed_min_score: with a detector whose scores predict the box's IoU (``scores_are_iou``), a
             detection scoring less confirms a followed track without moving it
             (:class:`chaser_bt.vision.trackers.TrackerBank`); ignored for other detectors.
@@ -100,6 +102,25 @@ class PipelineConfig:
     full_frame_every: int = 3
     cue_gate_deg: float = 4.0
     detector_input_px: int = 416
+    track_margin_px: float = 64.0
+
+
+@dataclass(frozen=True)
+class FramePlan:
+    """What the pipeline does with the frame at ``t``, decided before the frame is read: the smoothed
+    attitude and camera position, the cue's position, whether the detector runs and where it looks
+    (``window``; None: the whole frame), whether a track the detector did not see there counts against
+    it (``judge``), and ``regions``, the only parts of the frame the pipeline will read (the focus
+    window, the trackers' neighbourhoods; None: all of it), for a camera that reads out regions."""
+
+    t: float
+    attitude: Rotation
+    camera_enu: np.ndarray
+    cue_enu: np.ndarray | None
+    detect: bool
+    window: FocusWindow | None
+    judge: bool
+    regions: tuple[Region, ...] | None
 
 
 @dataclass
@@ -158,21 +179,42 @@ class VisionPipeline:
         self.range_filter.reset()
         self.frames = 0
 
-    def process(self, frame: Frame, ownship: OwnshipPose, target_range_m: float | None = None,
-                cue: TargetCue | None = None) -> TargetEstimate | None:
-        """One frame; ``target_range_m`` is the range from target telemetry when the mission uses it,
-        ``cue`` a fresh cue of the target (radar or telemetry) to look at and gate tracks by."""
-        image = frame.image
-        att = self.smoother.update(frame.t, ownship.attitude)
+    def plan(self, t: float, ownship: OwnshipPose, cue: TargetCue | None = None) -> FramePlan:
+        """Decide what the frame at ``t`` is for (:class:`FramePlan`); :meth:`process` then takes that frame.
+        Call once per frame: it advances the attitude smoother."""
+        cfg = self.config
+        att = self.smoother.update(t, ownship.attitude)
         cam = self.camera.position_enu(ownship.position_enu, att)
-        cue_enu = None if cue is None else cue.position_at(frame.t)
+        cue_enu = None if cue is None else cue.position_at(t)
+        detect = self.frames % cfg.detect_every == 0
+        window, judge = self._focus(ownship, att, cam, cue_enu) if detect else (None, True)
+        regions: tuple[Region, ...] | None = None
+        if not detect or window is not None:
+            regions = tuple(self._track_regions()) + (() if window is None else (window.region,))
+        return FramePlan(t, att, cam, cue_enu, detect, window, judge, regions)
+
+    def process(self, frame: Frame, ownship: OwnshipPose, target_range_m: float | None = None,
+                cue: TargetCue | None = None, plan: FramePlan | None = None) -> TargetEstimate | None:
+        """One frame; ``target_range_m`` is the range from target telemetry when the mission uses it,
+        ``cue`` a fresh cue of the target (radar or telemetry) to look at and gate tracks by, ``plan``
+        the frame's :meth:`plan` when it was made before the frame was read (else it is made here)."""
+        if plan is None:
+            plan = self.plan(frame.t, ownship, cue)
+        image = frame.image
+        att, cam, cue_enu = plan.attitude, plan.camera_enu, plan.cue_enu
         region = None
-        if self.frames % self.config.detect_every == 0:
-            dets, region, judge = self._detect(image, ownship, att, cam, cue_enu)
+        if plan.detect:
+            if plan.window is None:
+                dets = list(self.detector(image))
+            else:
+                self.focused_frames += 1
+                window = plan.window
+                region = window.region
+                dets = [replace(d, box=window.to_frame(d.box)) for d in self.detector(window.crop(image))]
             dets = [d for d in dets if not self.config.classes or d.class_name in self.config.classes]
             if not self._bank_tuned:
                 self._tune_bank()
-            tracks = self.trackers.correct(image, dets, frame.t, region, judge)
+            tracks = self.trackers.correct(image, dets, frame.t, region, plan.judge)
             self.detector_frames += 1
         else:
             tracks = self.trackers.advance(image, frame.t)
@@ -216,15 +258,15 @@ class VisionPipeline:
                                             confidence=float(min(max(conf, 0.0), 1.0)))
         return self.last_estimate
 
-    def _detect(self, image: np.ndarray, ownship: OwnshipPose, attitude: Rotation, camera_enu: np.ndarray,
-                cue_enu: np.ndarray | None) -> tuple[list[Detection], tuple[float, float, float, float] | None, bool]:
-        """Detections, the region the detector saw (None: the whole frame) and whether a track it
+    def _focus(self, ownship: OwnshipPose, attitude: Rotation, camera_enu: np.ndarray,
+               cue_enu: np.ndarray | None) -> tuple[FocusWindow | None, bool]:
+        """Where the detector looks on a detector frame (None: the whole frame) and whether a track it
         did not see there counts against it: the focus window when there is one this frame, else the
         whole frame (judged only when there was nothing to focus on: the whole frame's coarser scale
         misses small targets the window sees). With a cue the window is always used: the gate
         would refuse whatever the whole frame found outside it."""
         cfg = self.config
-        h, w = image.shape[:2]
+        w, h = self.camera.width_px, self.camera.height_px
         centre = expected = None
         track = self.track if self.track is not None and any(tr is self.track for tr in self.trackers.tracks) else None
         if track is not None:
@@ -238,12 +280,20 @@ class VisionPipeline:
         if cfg.focus and centre is not None:
             window = focus_window(centre, expected, (w, h), cfg.detector_input_px, cfg.focus_box_px, 1.0, cfg.focus_max_zoom)
         if window is None or window.zoom < cfg.focus_min_zoom:
-            return list(self.detector(image)), None, True
+            return None, True
         if cue_enu is None and self.detector_frames % cfg.full_frame_every == 0:
-            return list(self.detector(image)), None, False
-        self.focused_frames += 1
-        region = (window.x0, window.y0, window.x0 + window.side_px, window.y0 + window.side_px)
-        return [replace(d, box=window.to_frame(d.box)) for d in self.detector(window.crop(image))], region, True
+            return None, False
+        return window, True
+
+    def _track_regions(self) -> list[Region]:
+        """The neighbourhoods the trackers (and the box refiner) read around each track's box."""
+        w, h = self.camera.width_px, self.camera.height_px
+        out = []
+        for tr in self.trackers.tracks:
+            x0, y0, x1, y1 = tr.box
+            m = max(self.config.track_margin_px, x1 - x0, y1 - y0)
+            out.append((max(int(x0 - m), 0), max(int(y0 - m), 0), min(int(math.ceil(x1 + m)), w), min(int(math.ceil(y1 + m)), h)))
+        return [r for r in out if r[2] > r[0] and r[3] > r[1]]
 
     def _span_m(self) -> float:
         """The width expected of the target: the largest known width of the accepted classes (1 m if none is known)."""
@@ -288,17 +338,28 @@ def ground_range(camera_enu: np.ndarray, bearing_enu: np.ndarray, min_down: floa
 
 @dataclass
 class CameraSensor:
-    """A frame source and the pipeline that reads it: what the VisionPipeline behaviour ticks."""
+    """A frame source and the pipeline that reads it: what the VisionPipeline behaviour ticks.
+
+    A source that reads out regions of interest (the simulator's camera) is asked for only the parts
+    the pipeline will look at (:attr:`FramePlan.regions`), unless ``whole_frames`` is set: a consumer
+    that shows or stores the frames (the ground video stream, the flight recorder) sets it in its setup.
+    """
 
     source: FrameSource
     pipeline: VisionPipeline
+    whole_frames: bool = False
     last_frame: Frame | None = field(default=None, init=False)  # the frame last processed (for streaming and logs)
 
     def step(self, t: float, ownship: OwnshipPose, target_range_m: float | None = None,
              cue: TargetCue | None = None) -> TargetEstimate | None:
         """Read the frame for ``t`` and process it; None when there is no frame or no target."""
-        frame = self.source.read(t)
+        plan = None
+        if not self.whole_frames and reads_regions(self.source):
+            plan = self.pipeline.plan(t, ownship, cue)
+            frame = self.source.read(t, regions=plan.regions)
+        else:
+            frame = self.source.read(t)
         if frame is None:
             return None
         self.last_frame = frame
-        return self.pipeline.process(frame, ownship, target_range_m, cue)
+        return self.pipeline.process(frame, ownship, target_range_m, cue, plan)

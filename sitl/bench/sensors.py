@@ -32,7 +32,7 @@ import logging
 import math
 import time
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -44,7 +44,7 @@ from chaser_bt.radar.recording import calibrate_recording
 from chaser_bt.radar.stream import QueueDatagramSource
 from chaser_bt.target_telemetry import TargetTelemetry
 from chaser_bt.vision.camera import CameraModel
-from chaser_bt.vision.frame_source import Frame
+from chaser_bt.vision.frame_source import Frame, Region
 from chaser_bt.vision.pipeline import CameraSensor, VisionPipeline
 from sitl.bench.radar_trials import (
     FIELD,
@@ -216,14 +216,16 @@ class ScenarioFrameSource:
         self.source: SimulatorFrameSource | None = None
         self.last_labels: tuple = ()
 
-    def read(self, t: float) -> Frame | None:
+    reads_regions = True  # the renderer draws only the regions the pipeline asks for
+
+    def read(self, t: float, regions: Sequence[Region] | None = None) -> Frame | None:
         if self.source is None:
             world = build_world(self.world, self.seed, self.camera.width_px, self.camera.height_px)
             self.source = SimulatorFrameSource(self.simulator, self.camera, [], self.seed, world=world)
         now = float(self.simulator.time_s)
         shown = [k for k, (_, present) in enumerate(self.targets) if present(now)]
         self.source.targets = [self.targets[k][0] for k in shown]
-        frame = self.source.read(t)
+        frame = self.source.read(t, regions)
         self.last_labels = tuple(replace(lab, index=shown[lab.index]) for lab in self.source.last_labels)
         return frame
 

@@ -170,3 +170,93 @@ def test_the_trackers_get_the_detectors_refiner_and_its_reseed_rule_only_if_its_
     off = VisionPipeline(cam, det, PipelineConfig(detect_every=1, focus=False, refine_tracks=False))
     _run(off, 1)
     assert off.trackers.refine is None
+
+
+# -- planning a frame before it is read (regions of interest) ----------------------------------------
+
+
+class _RegionSource:
+    """A source that reads out regions: records what it was asked for, returns a blank frame."""
+
+    reads_regions = True
+
+    def __init__(self, w: int = 640, h: int = 480) -> None:
+        self.asked: list = []
+        self.shape = (h, w, 3)
+
+    def read(self, t, regions=None):
+        self.asked.append(regions)
+        return Frame(t, np.zeros(self.shape, np.uint8), len(self.asked) - 1, None if regions is None else tuple(regions))
+
+    def close(self) -> None:
+        pass
+
+
+def test_the_plan_asks_for_the_focus_window_then_the_tracks_neighbourhood():
+    from scipy.spatial.transform import Rotation
+
+    from chaser_bt.cue import TargetCue
+
+    cam = CameraModel(width_px=640, height_px=480, tilt_rad=0.0)
+    # The detector sees the 2x focus window; its box (crop pixels) maps back to (300, 230, 316, 246) in the frame.
+    script = _Script([[((168.0, 188.0, 200.0, 220.0), 0.9)]])
+    pipe = VisionPipeline(cam, script, PipelineConfig(detect_every=2, tracker_kinds=()))
+    source = _RegionSource()
+    sensor = CameraSensor(source, pipe)
+    pose = lambda t: OwnshipPose(t, np.array([0.0, 0.0, 10.0]), np.zeros(3), Rotation.identity())
+    cue = TargetCue(0.0, np.array([100.0, 0.0, 10.0]), 4.0 * np.eye(3))  # dead ahead, 100 m: a few pixels wide
+    est = sensor.step(0.0, pose(0.0), cue=cue)
+    # Detector frame: the window at zoom 2 (416 / 2 = 208 px) centred on the cue's pixel (320, 240).
+    assert source.asked[0] == ((216, 136, 424, 344),)
+    assert est is not None and pipe.track.box == pytest.approx((300.0, 230.0, 316.0, 246.0))
+    sensor.step(0.1, pose(0.1), cue=cue)
+    # Tracker frame: only the track's neighbourhood, its box and 64 px around it.
+    assert source.asked[1] == ((236, 166, 380, 310),)
+    sensor.whole_frames = True  # a ground video stream or a recorder is watching
+    sensor.step(0.2, pose(0.2), cue=cue)
+    assert source.asked[2] is None
+
+
+def test_without_a_cue_or_a_track_the_detector_frame_is_read_whole():
+    from scipy.spatial.transform import Rotation
+
+    pipe = VisionPipeline(CAM, _Fixed(None), PipelineConfig(detect_every=1))
+    plan = pipe.plan(0.0, OwnshipPose(0.0, np.zeros(3), np.zeros(3), Rotation.identity()))
+    assert plan.detect and plan.window is None and plan.regions is None
+
+
+def test_a_plan_made_before_the_frame_changes_nothing_of_what_the_pipeline_reports():
+    from scipy.spatial.transform import Rotation
+
+    cam = CameraModel(width_px=320, height_px=240, tilt_rad=0.0)
+    box = [((150.0, 110.0, 170.0, 130.0), 0.8)]
+    cfg = PipelineConfig(detect_every=2, tracker_kinds=(), focus=False)
+    a = VisionPipeline(cam, _Script([box, [], box]), cfg)
+    b = VisionPipeline(cam, _Script([box, [], box]), cfg)
+    pose = lambda t: OwnshipPose(t, np.array([0.0, 0.0, 10.0]), np.zeros(3), Rotation.from_euler("z", 0.02 * t))
+    for k in range(6):
+        frame = Frame(0.1 * k, np.zeros((240, 320, 3), np.uint8), k)
+        ea = a.process(frame, pose(frame.t))
+        eb = b.process(frame, pose(frame.t), plan=b.plan(frame.t, pose(frame.t)))
+        assert (ea is None) == (eb is None)
+        if ea is not None:
+            np.testing.assert_array_equal(ea.position_enu, eb.position_enu)
+
+
+def test_a_source_that_cannot_read_regions_is_asked_for_whole_frames():
+    from scipy.spatial.transform import Rotation
+
+    class Plain:
+        def __init__(self):
+            self.calls = 0
+
+        def read(self, t):  # no regions= keyword: a real camera
+            self.calls += 1
+            return Frame(t, np.zeros((480, 640, 3), np.uint8), self.calls)
+
+        def close(self):
+            pass
+
+    src = Plain()
+    CameraSensor(src, VisionPipeline(CAM, _Fixed(None))).step(0.0, OwnshipPose(0.0, np.zeros(3), np.zeros(3), Rotation.identity()))
+    assert src.calls == 1

@@ -14,7 +14,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from chaser_bt.vision.camera import CameraModel
-from chaser_bt.vision.frame_source import Frame
+from chaser_bt.vision.frame_source import Frame, Region
 from sitl.world.camera.renderer import (
     Lighting,
     Renderer,
@@ -75,7 +75,11 @@ class SimulatorFrameSource:
         self._index = 0
         self.last_labels = ()
 
-    def read(self, t: float) -> Frame | None:
+    reads_regions = True  # see chaser_bt.vision.frame_source
+
+    def read(self, t: float, regions: Sequence[Region] | None = None) -> Frame | None:
+        """The frame at the simulator's time, stamped ``t``; only ``regions`` drawn when given
+        (:meth:`Renderer.render`)."""
         truth = self.simulator.truth
         sim_t = float(self.simulator.time_s)
         att = truth.attitude
@@ -85,9 +89,9 @@ class SimulatorFrameSource:
             blur = rate * self.exposure_s * self.camera.focal_px[0]
         self._last = (sim_t, att)
         frame = self.renderer.render(truth.pos_enu, att, [tg.pose(sim_t) for tg in self.targets], self.lighting, self.rng, blur_px=blur,
-                                     t=sim_t)
+                                     t=sim_t, regions=regions)
         self.last_labels = frame.labels  # for scoring only
-        out = Frame(t, frame.image, self._index)
+        out = Frame(t, frame.image, self._index, frame.views)
         self._index += 1
         return out
 

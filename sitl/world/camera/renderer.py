@@ -22,6 +22,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from chaser_bt.vision.camera import CameraModel
+from chaser_bt.vision.frame_source import Region
 from sitl.world.camera.lighting import Lighting
 from sitl.world.camera.models import TargetModel, model_for
 from sitl.world.camera.effects import vignette_map
@@ -29,10 +30,14 @@ from sitl.world.camera.fields import DETAIL_M_PER_PX
 from sitl.world.camera.scene import GroundScene
 from sitl.world.camera.world import CameraWorld
 
-__all__ = ["Lighting", "TargetPose", "TargetLabel", "RenderedFrame", "Renderer", "attitude_from_velocity"]
+__all__ = ["Lighting", "TargetPose", "TargetLabel", "RenderedFrame", "Renderer", "Region", "attitude_from_velocity", "viewports"]
 
 _DISC_SIDES = 12
 _COARSE = 4  # sky and haze grid step (pixels)
+_BLOCK = 16  # JPEG's block (a 4:2:0 macroblock): views start on it so their blocks are the whole frame's
+#: The margin a view adds around a region asked for: the motion blur's reach (12 px) and a JPEG
+#: macroblock, whose decoding blends chroma across block edges.
+VIEW_MARGIN_PX = 32
 
 
 @dataclass(frozen=True)
@@ -60,10 +65,12 @@ class TargetLabel:
 
 @dataclass(frozen=True)
 class RenderedFrame:
-    """One camera frame (BGR uint8, height x width x 3) and the labels of the targets in it."""
+    """One camera frame (BGR uint8, height x width x 3) and the labels of the targets in it; ``views``:
+    the parts drawn when regions were asked for (None: the whole frame)."""
 
     image: np.ndarray
     labels: tuple[TargetLabel, ...]
+    views: tuple[Region, ...] | None = None
 
 
 def attitude_from_velocity(velocity_enu: np.ndarray, tilt_per_mps: float = math.radians(2.5)) -> Rotation:
@@ -156,30 +163,92 @@ class Renderer:
 
     def render(self, vehicle_pos_enu: np.ndarray, body_attitude: Rotation, targets: Sequence[TargetPose],
                lighting: Lighting, rng: np.random.Generator, blur_px: float = 0.0, blur_angle_rad: float = 0.0,
-               t: float = 0.0) -> RenderedFrame:
+               t: float = 0.0, regions: Sequence[Region] | None = None) -> RenderedFrame:
         """The frame seen from the vehicle's pose; ``blur_px`` is the motion-blur streak length and
-        ``t`` the time (s) that places a world's birds and aircraft and its camera's drift."""
+        ``t`` the time (s) that places a world's birds and aircraft and its camera's drift.
+
+        ``regions`` (x0, y0, x1, y1 pixel rectangles) asks for those parts only, as a camera reading out
+        regions of interest: each is drawn with a margin wide enough for the blur and the JPEG blocks
+        (:func:`viewports`), so its pixels are the whole frame's; the rest of the frame is a flat grey.
+        None: the whole frame. The labels and the randomness drawn are the same either way.
+        """
         cam = self.camera
         w, h = cam.width_px, cam.height_px
         r_ce = cam.camera_to_enu(body_attitude).as_matrix()  # optical -> ENU
         c_enu = cam.position_enu(vehicle_pos_enu, body_attitude)
         sun = lighting.sun_enu()
+        drawn = views = viewports(regions, w, h)
+        if views is None:
+            views = [(0, 0, w, h)]
+            img = self._background(views[0], r_ce, c_enu, sun, lighting)
+        else:
+            img = np.empty((h, w, 3), np.uint8)
+            img[:] = np.round(self._ground_mean).astype(np.uint8)
+            for x0, y0, x1, y1 in views:
+                img[y0:y1, x0:x1] = self._background((x0, y0, x1, y1), r_ce, c_enu, sun, lighting)
+        if self.world is not None:
+            self._draw_world(img, r_ce, c_enu, t)
+        labels = self._draw_targets(img, r_ce, c_enu, targets, sun, lighting.brightness)
+        effects = self.world.effects if self.world is not None else None
+        gains = effects.gains(t) + (1.0,) if effects is not None else None
+        for x0, y0, x1, y1 in views:
+            view = img[y0:y1, x0:x1]
+            if gains is not None:
+                view[:] = cv2.multiply(view, gains, dtype=cv2.CV_8U)
+            if blur_px >= 1.5:
+                view[:] = _motion_blur(view, blur_px, blur_angle_rad)
+        if self.world is not None and self.world.specks is not None:
+            self.world.specks.draw(img)
+        if lighting.noise_sigma > 0:
+            oy, ox = rng.integers(0, 64, size=2)
+        for x0, y0, x1, y1 in views:
+            view = img[y0:y1, x0:x1]
+            if lighting.noise_sigma > 0:
+                noise = self._noise[oy + y0:oy + y1, ox + x0:ox + x1]
+                view[:] = cv2.addWeighted(view, 1.0, noise, lighting.noise_sigma / 20.0, 0.0, dtype=cv2.CV_8U)
+            if lighting.jpeg_quality > 0:
+                ok, buf = cv2.imencode(".jpg", view, [cv2.IMWRITE_JPEG_QUALITY, int(lighting.jpeg_quality)])
+                view[:] = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+        return RenderedFrame(image=img, labels=labels, views=None if drawn is None else tuple(drawn))
+
+    def _background(self, view: Region, r_ce: np.ndarray, c_enu: np.ndarray, sun: np.ndarray,
+                    lighting: Lighting) -> np.ndarray:
+        """Ground, sky and haze over ``view`` (x0, y0, x1, y1, multiples of the coarse step), before
+        anything is drawn over them.
+
+        Sky and haze vary slowly: they are worked out on the coarse grid's cells under the view and one
+        cell around it (so their interpolation up to full size is the whole frame's), then blended at
+        full size over that padded view, which is cut back to ``view`` at the end.
+        """
+        x0, y0, x1, y1 = view
+        gh, gw = self._u_lo.shape
+        if view == (0, 0, self.camera.width_px, self.camera.height_px):
+            cx0, cy0, cx1, cy1 = 0, 0, gw, gh
+            size = (x1, y1)
+        else:  # viewports() gives views on the coarse grid, inside a frame the grid covers exactly
+            cx0, cy0 = max(x0 // _COARSE - 1, 0), max(y0 // _COARSE - 1, 0)
+            cx1, cy1 = min(x1 // _COARSE + 1, gw), min(y1 // _COARSE + 1, gh)
+            size = ((cx1 - cx0) * _COARSE, (cy1 - cy0) * _COARSE)
+        px0, py0 = cx0 * _COARSE, cy0 * _COARSE  # the padded view's corner, frame pixels
+        u_lo, v_lo = self._u_lo[cy0:cy1, cx0:cx1], self._v_lo[cy0:cy1, cx0:cx1]
+        inv_norm_lo = self._inv_norm_lo[cy0:cy1, cx0:cx1]
         # Ground through the homography K R^T [e1 e2 -C] G (G: texture pixel -> ground metres).
         rt = r_ce.T
         plane = self._k @ np.column_stack([rt[:, 0], rt[:, 1], -rt @ c_enu])
-        hg = plane @ self.scene.texture_to_ground()
-        # Sky and haze vary slowly: work them out on a coarse grid, then blend at full size.
+        if px0 or py0:  # into the padded view's pixels
+            plane = np.array([[1.0, 0.0, -float(px0)], [0.0, 1.0, -float(py0)], [0.0, 0.0, 1.0]]) @ plane
         # Ray elevation: the ENU up-component of the optical ray, linear in (u, v).
-        up = (r_ce[2, 0] * self._u_lo + r_ce[2, 1] * self._v_lo + r_ce[2, 2]) * self._inv_norm_lo
+        up = (r_ce[2, 0] * u_lo + r_ce[2, 1] * v_lo + r_ce[2, 2]) * inv_norm_lo
         ground = up < 0.0
         height = max(float(c_enu[2]), 0.05)
         dist = height / np.maximum(-up, 1e-4)
         if self.scene.far_texture is None and self.scene.detail is None:
             # Beyond the texture the ground is its mean colour (BORDER_REFLECT would loop for near-horizon rays).
-            ground_img = cv2.warpPerspective(self.scene.texture, hg, (w, h), flags=cv2.INTER_LINEAR,
-                                             borderMode=cv2.BORDER_CONSTANT, borderValue=self._ground_mean)
+            ground_img = cv2.warpPerspective(self.scene.texture, plane @ self.scene.texture_to_ground(), size,
+                                             flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                                             borderValue=self._ground_mean)
         else:
-            ground_img = self._filtered_ground(plane, dist, ground)
+            ground_img = self._filtered_ground(plane, dist, ground, size)
         ground_img = cv2.convertScaleAbs(ground_img, alpha=0.55 + 0.55 * max(float(sun[2]), 0.0))
         weight = np.where(ground, np.exp(-dist / lighting.haze_m), 0.0).astype(np.float32)
         hor = np.asarray(lighting.sky_horizon, np.float32)
@@ -189,44 +258,33 @@ class Renderer:
             sky = hor + (zen - hor) * np.sqrt(np.clip(up, 0.0, 1.0))[..., None]
             back = np.clip(np.where(ground[..., None], hor, sky), 0, 255).astype(np.uint8)
         else:
-            rays = np.stack([self._u_lo, self._v_lo, np.ones_like(self._u_lo)], axis=-1) @ r_ce.T
-            rays *= self._inv_norm_lo[..., None]
+            rays = np.stack([u_lo, v_lo, np.ones_like(u_lo)], axis=-1) @ r_ce.T
+            rays *= inv_norm_lo[..., None]
             glare = sky_model.glare_map(rays, sun)[..., None]  # the lens sees it over sky and ground alike
             back = np.clip(np.where(ground[..., None], hor, sky_model.colour(rays, c_enu)) + glare, 0, 255).astype(np.uint8)
-        back = cv2.resize(back, (w, h), interpolation=cv2.INTER_LINEAR)
+        back = cv2.resize(back, size, interpolation=cv2.INTER_LINEAR)
         if self._vignette_lo is None:
-            weight = cv2.resize(weight, (w, h), interpolation=cv2.INTER_LINEAR)
+            weight = cv2.resize(weight, size, interpolation=cv2.INTER_LINEAR)
             img = cv2.blendLinear(ground_img, back, weight, 1.0 - weight)
         else:  # the lens darkens the corners: folded into the blend's weights
-            v = self._vignette_lo
-            w_ground = cv2.resize(weight * v, (w, h), interpolation=cv2.INTER_LINEAR)
-            w_back = cv2.resize((1.0 - weight) * v, (w, h), interpolation=cv2.INTER_LINEAR)
+            v = self._vignette_lo[cy0:cy1, cx0:cx1]
+            w_ground = cv2.resize(weight * v, size, interpolation=cv2.INTER_LINEAR)
+            w_back = cv2.resize((1.0 - weight) * v, size, interpolation=cv2.INTER_LINEAR)
             img = cv2.blendLinear(ground_img, back, w_ground, w_back)
         if lighting.brightness != 1.0:
             img = cv2.convertScaleAbs(img, alpha=lighting.brightness)
-        if self.world is not None:
-            self._draw_world(img, r_ce, c_enu, t)
-        labels = self._draw_targets(img, r_ce, c_enu, targets, sun, lighting.brightness)
-        if self.world is not None and self.world.effects is not None:
-            img = cv2.multiply(img, self.world.effects.gains(t) + (1.0,), dtype=cv2.CV_8U)
-        if blur_px >= 1.5:
-            img = _motion_blur(img, blur_px, blur_angle_rad)
-        if self.world is not None and self.world.specks is not None:
-            self.world.specks.draw(img)
-        if lighting.noise_sigma > 0:
-            oy, ox = rng.integers(0, 64, size=2)
-            noise = self._noise[oy:oy + h, ox:ox + w]
-            img = cv2.addWeighted(img, 1.0, noise, lighting.noise_sigma / 20.0, 0.0, dtype=cv2.CV_8U)
-        if lighting.jpeg_quality > 0:
-            ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, int(lighting.jpeg_quality)])
-            img = cv2.imdecode(buf, cv2.IMREAD_COLOR)
-        return RenderedFrame(image=img, labels=labels)
+        if size == (x1 - x0, y1 - y0):
+            return img
+        return img[y0 - py0:y1 - py0, x0 - px0:x1 - px0]
 
-    def _filtered_ground(self, plane: np.ndarray, dist_lo: np.ndarray, ground_lo: np.ndarray) -> np.ndarray:
+    def _filtered_ground(self, plane: np.ndarray, dist_lo: np.ndarray, ground_lo: np.ndarray,
+                         size: tuple[int, int]) -> np.ndarray:
         """The ground filtered with distance: the pre-filtered copy where a pixel spans several texels
         (no shimmer toward the horizon), the full texture nearer, and the detail tile's fine grain
-        where the ground is near. Each layer is warped only over the rows where it shows."""
-        w, h = self.camera.width_px, self.camera.height_px
+        where the ground is near. Each layer is warped only over the rows where it shows. ``plane`` maps
+        ground metres to the output's pixels; ``size`` is the output's (width, height), which the coarse
+        grids ``dist_lo`` and ``ground_lo`` cover."""
+        w, h = size
         scene = self.scene
         out = np.empty((h, w, 3), np.uint8)
         out[:] = np.round(self._ground_mean).astype(np.uint8)
@@ -361,6 +419,39 @@ class Renderer:
                 cv2.fillPoly(layer, [shifted], col, cv2.LINE_AA, 4)
                 a = float(m.disc_alpha[k])
                 cv2.addWeighted(layer, a, roi, 1.0 - a, 0.0, dst=roi)
+
+
+def viewports(regions: Sequence[Region] | None, width: int, height: int, margin_px: int = VIEW_MARGIN_PX,
+              max_share: float = 0.6) -> list[Region] | None:
+    """The views to draw for ``regions``: each widened by ``margin_px``, its corners moved out to the
+    16-pixel grid of the JPEG blocks (and so the coarse grid's), cut to the frame, and overlapping
+    ones merged. None (draw the whole frame) for no regions, when the views would cover more than
+    ``max_share`` of the frame (one whole frame is cheaper) or when the frame is not a whole number of
+    blocks."""
+    if regions is None or width % _BLOCK or height % _BLOCK:
+        return None
+    views: list[list[int]] = []
+    for x0, y0, x1, y1 in regions:
+        v = [max(int(math.floor((x0 - margin_px) / _BLOCK)) * _BLOCK, 0), max(int(math.floor((y0 - margin_px) / _BLOCK)) * _BLOCK, 0),
+             min(int(math.ceil((x1 + margin_px) / _BLOCK)) * _BLOCK, width), min(int(math.ceil((y1 + margin_px) / _BLOCK)) * _BLOCK, height)]
+        if v[2] > v[0] and v[3] > v[1]:
+            views.append(v)
+    merged = True
+    while merged:  # merge until no two views overlap (their union's box replaces them)
+        merged = False
+        for i in range(len(views)):
+            for j in range(i + 1, len(views)):
+                a, b = views[i], views[j]
+                if a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]:
+                    views[i] = [min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3])]
+                    del views[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    if sum((v[2] - v[0]) * (v[3] - v[1]) for v in views) > max_share * width * height:
+        return None
+    return [(v[0], v[1], v[2], v[3]) for v in views]
 
 
 def _rows(mask_lo: np.ndarray, height: int) -> tuple[int, int] | None:

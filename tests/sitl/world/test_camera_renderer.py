@@ -117,3 +117,46 @@ def test_a_lying_person_seen_from_above_is_long_along_its_body_and_colour_varian
     assert not np.array_equal(frames[0].image, frames[1].image)  # the clothes differ
     with pytest.raises(ValueError, match="known"):
         model_for("yeti", 3)
+
+
+# -- regions of interest ------------------------------------------------------------------------------
+
+
+def test_viewports_widen_each_region_to_the_jpeg_block_grid_and_merge_overlaps():
+    from sitl.world.camera.renderer import viewports
+
+    # (200 - 32) / 16 = 10.5 -> 160; (100 - 32) / 16 = 4.25 -> 64; (408 + 32) / 16 = 27.5 -> 448; (308 + 32) / 16 = 21.25 -> 352
+    assert viewports([(200, 100, 408, 308)], 640, 480) == [(160, 64, 448, 352)]
+    # Cut to the frame at its edges.
+    assert viewports([(0, 440, 40, 480)], 640, 480) == [(0, 400, 80, 480)]
+    # Two overlapping regions become their union's box; a distant one stays apart.
+    assert viewports([(100, 100, 140, 140), (150, 120, 190, 160), (500, 20, 520, 40)], 640, 480) == [
+        (64, 64, 224, 192), (464, 0, 560, 80)]
+    # Nothing asked, too much asked (one whole frame is cheaper) or a frame off the block grid: the whole frame.
+    assert viewports(None, 640, 480) is None
+    assert viewports([(0, 0, 500, 400)], 640, 480) is None
+    assert viewports([(10, 10, 20, 20)], 630, 480) is None
+
+
+@pytest.mark.parametrize("family", ["plain", "suburb", "coast"])
+def test_a_frame_read_out_in_regions_is_the_whole_frame_inside_them(family):
+    from sitl.world.camera.world import WorldSpec, build_world
+
+    world = build_world(WorldSpec(family=family), 3)
+    rend = Renderer(CAM, world=world, noise_seed=1)
+    regions = [(200, 100, 408, 308), (40, 380, 120, 460)]
+    targets = [TargetPose("s1000", np.array([60.0, 8.0, 33.0])), TargetPose("phantom", np.array([40.0, -30.0, 28.0]))]
+    pose = (np.array([0.0, 0.0, 30.0]), Rotation.from_euler("ZY", [0.1, 0.12]))
+    full_rng, part_rng = np.random.default_rng(5), np.random.default_rng(5)
+    full = rend.render(*pose, targets, world.lighting, full_rng, blur_px=4.0, blur_angle_rad=0.4, t=2.0)
+    part = rend.render(*pose, targets, world.lighting, part_rng, blur_px=4.0, blur_angle_rad=0.4, t=2.0, regions=regions)
+    assert full.views is None and part.views == ((160, 64, 448, 352), (0, 336, 160, 480))
+    assert part.labels == full.labels and full.labels  # labels are geometry: the same either way
+    assert part_rng.integers(1 << 30) == full_rng.integers(1 << 30)  # the same randomness drawn
+    for x0, y0, x1, y1 in regions:
+        diff = np.abs(full.image[y0:y1, x0:x1].astype(int) - part.image[y0:y1, x0:x1])
+        # The same pixels but for OpenCV's warp rounding a texel coordinate (1/32 texel) the other way
+        # now and then, which JPEG then spreads over its block: a few pixels in a thousand, by a few levels.
+        assert diff.max() <= 16 and np.count_nonzero(diff) <= 0.01 * diff.size
+    # Outside the views the frame is a flat fill, not the scene.
+    assert len(np.unique(part.image[5:60, 600:635].reshape(-1, 3), axis=0)) == 1
