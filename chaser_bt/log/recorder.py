@@ -419,6 +419,8 @@ class _RecordingDatagramSource:
 class _RecordingFrameSource:
     """A frame source that shows the recorder every frame it hands out."""
 
+    reads_regions = False  # the log keeps whole frames, whatever the camera could read out
+
     def __init__(self, source: Any, recorder: Recorder) -> None:
         self.inner, self._recorder = source, recorder
 
