@@ -12,14 +12,16 @@ that count as the target, and ``target_on_ground`` ranges a target standing on f
 person) where its bearing meets the ground. ``cue`` (unset by default; remap it to the radar cue or
 the target's telemetry) tells the pipeline where to look and which tracks can be the target
 (:class:`~chaser_bt.vision.pipeline.PipelineConfig` ``focus`` and ``cue_gate_deg``), and
-``detect_every`` sets how often the detector runs. :class:`TargetInView` is SUCCESS while a confident
-estimate is fresh.
+``detect_every`` sets how often the detector runs. With a
+:class:`~chaser_bt.vision.perception.PerceptionWorker` as the camera (a real flight's default) the
+pipeline runs in the worker's threads: the node hands it this tick's inputs, writes the latest
+estimate (stamped with its frame's time) and fails, saying why, when the worker stopped, died or
+fell behind. :class:`TargetInView` is SUCCESS while a confident estimate is fresh.
 """
 
 from __future__ import annotations
 
 import enum
-from dataclasses import replace
 from functools import lru_cache
 from typing import Any
 
@@ -29,6 +31,7 @@ import py_trees
 from behaviours.base import VehicleBehaviour, optional_input, state_port
 from chaser_bt.cue import TargetCue, TargetEstimate
 from chaser_bt.tree import NodeKind, input_port, output_port, register_behaviour
+from chaser_bt.vision.perception import PerceptionWorker, PipelineSetup
 from chaser_bt.vision.pipeline import CameraSensor, OwnshipPose
 
 Status = py_trees.common.Status
@@ -86,42 +89,46 @@ class VisionPipeline(VehicleBehaviour):
 
     def setup(self, **kwargs: Any) -> None:
         super().setup(**kwargs)
-        if not isinstance(kwargs.get("camera"), CameraSensor):
-            raise KeyError(f"{self.name}: setup() needs camera=CameraSensor(...) (the mission runner passes it)")
-        self.camera: CameraSensor = kwargs["camera"]
+        if not isinstance(kwargs.get("camera"), (CameraSensor, PerceptionWorker)):
+            raise KeyError(f"{self.name}: setup() needs camera=CameraSensor(...) or PerceptionWorker(...) "
+                           f"(the mission runner passes it)")
+        self.camera: CameraSensor | PerceptionWorker = kwargs["camera"]
         choice = self.get_input("detector")
         weights = str(self.get_input("weights") or "")
         if weights:
             _from_file(weights)  # loaded before take-off, like a shipped one
         elif choice is not DetectorChoice.CAMERA:
             _shipped(choice.value)  # loaded before take-off: missing weights stop the mission here, not in flight
+        if isinstance(self.camera, PerceptionWorker):
+            self.camera.start()  # the camera runs beside the tick from now on (stopped by whoever built it)
 
-    def _configure(self) -> None:
-        """Put this node's detector, classes and ground ranging into the camera's pipeline (once per change)."""
-        pipeline = self.camera.pipeline
+    def _setup(self) -> PipelineSetup:
+        """This node's detector, classes, ground ranging and detector rate for the camera's pipeline."""
         choice: DetectorChoice = self.get_input("detector")
-        classes = tuple(self.get_input("classes") or ())
-        on_ground = bool(self.get_input("target_on_ground"))
-        wanted_classes = classes or pipeline.config.classes
         every = int(self.get_input("detect_every"))
         if every < 0:
             raise ValueError(f"detect_every must be >= 0, got {every}")
-        if every and every != pipeline.config.detect_every:
-            pipeline.config = replace(pipeline.config, detect_every=every)
         weights = str(self.get_input("weights") or "")
-        if weights and pipeline.detector_name != weights:
-            pipeline.use_detector(_from_file(weights), weights, wanted_classes, on_ground)
-        elif not weights and choice is not DetectorChoice.CAMERA and pipeline.detector_name != choice.value:
-            pipeline.use_detector(_shipped(choice.value), choice.value, wanted_classes, on_ground)
-        elif wanted_classes != pipeline.config.classes or on_ground != pipeline.config.target_on_ground:
-            pipeline.use_detector(pipeline.detector, pipeline.detector_name, wanted_classes, on_ground)
+        if weights:
+            detector, name = _from_file(weights), weights
+        elif choice is not DetectorChoice.CAMERA:
+            detector, name = _shipped(choice.value), choice.value
+        else:
+            detector, name = None, ""
+        return PipelineSetup(detector, name, tuple(self.get_input("classes") or ()),
+                             bool(self.get_input("target_on_ground")), every)
 
     def update(self) -> Status:
+        threaded = isinstance(self.camera, PerceptionWorker)
         try:
-            self._configure()
+            setup = self._setup()
         except (ValueError, FileNotFoundError) as e:
             self.feedback_message = f"detector: {e}"
             return Status.FAILURE
+        if threaded:
+            self.camera.configure(setup)  # applied by the worker before its next frame
+        else:
+            setup.apply(self.camera.pipeline)
         s = self.state
         if s.attitude is None or not np.all(np.isfinite(s.position_enu)):
             self.feedback_message = "no ownship attitude/position yet"
@@ -136,7 +143,16 @@ class VisionPipeline(VehicleBehaviour):
         if cue is not None and cue.age(now) > self.get_input("max_cue_age_s"):
             cue = None
         vel = s.velocity_enu if np.all(np.isfinite(s.velocity_enu)) else np.zeros(3)
-        est = self.camera.step(now, OwnshipPose(now, s.position_enu, vel, s.attitude), known_range, cue)
+        pose = OwnshipPose(now, s.position_enu, vel, s.attitude)
+        if threaded:  # hand the worker this tick's inputs, read its latest result: no waiting
+            self.camera.submit(pose, known_range, cue)
+            problem = self.camera.health(now)
+            if problem is not None:
+                self.feedback_message = problem
+                return Status.FAILURE
+            est = self.camera.latest().estimate
+        else:
+            est = self.camera.step(now, pose, known_range, cue)
         if est is None:
             self.feedback_message = "no target in view"
             return Status.FAILURE

@@ -131,6 +131,9 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     p.add_argument("--radar-time-offset", type=float, default=0.0, metavar="S", help="radar time + S = mission time, s (default 0)")
     p.add_argument("--camera", metavar="SOURCE", help="video file, stream URL or device index for the on-board camera (default: none)")
     p.add_argument("--camera-size", type=_size, metavar="WxH", help="resize camera frames to this size, px (default: as captured)")
+    p.add_argument("--perception", choices=("thread", "inline"), default="thread",
+                   help="run the camera pipeline in its own thread beside the tick (default thread: the tick "
+                        "reads its latest estimate) or inside the tick (inline, as rehearsals do)")
     p.add_argument("--no-telemetry", action="store_true", help="do not listen for the intruder's own MAVLink position")
     p.add_argument("--origin", type=arg.geodetic_point, metavar="LAT,LON[,ALT]",
                    help="the mission's ENU origin, deg, deg, m (default: the vehicle's home, from HOME_POSITION)")
@@ -267,7 +270,7 @@ def _run(args: argparse.Namespace) -> int:
 
 def _fly(args: argparse.Namespace, tree, monitor) -> int:
     from chaser_bt.clock import FunctionClock, WallClock
-    from chaser_bt.mission.flight_sensors import FlightSensorError, check_sensors
+    from chaser_bt.mission.flight_sensors import FlightSensorError, check_sensors, close_flight_sensors
     from chaser_bt.mission.runner import MissionRunner, RunStatus
     from chaser_bt.vehicle import LinkConfig, VehicleError, VehicleLink
 
@@ -307,6 +310,7 @@ def _fly(args: argparse.Namespace, tree, monitor) -> int:
     finally:
         if hook is not None:
             hook.close()
+        close_flight_sensors(resources)  # the camera's threads end with the flight (Ctrl-C and SIGTERM too)
         link.close()
     state = link.state
     print(f"{result.status.value}: {result.message or '-'} after {result.ticks} ticks; vehicle {state.mode}, {'armed' if state.armed else 'disarmed'}")
@@ -374,7 +378,8 @@ def _sensor_options(args: argparse.Namespace):
 
     return FlightSensorOptions(radar_listen=args.radar, radar_pose_file=args.radar_pose,
                                radar_time_offset_s=args.radar_time_offset, camera=args.camera,
-                               camera_size=args.camera_size, telemetry=not args.no_telemetry)
+                               camera_size=args.camera_size, telemetry=not args.no_telemetry,
+                               perception=args.perception)
 
 
 def _flight_sensors(args: argparse.Namespace, link, clock) -> dict:

@@ -11,7 +11,10 @@
 - the ``radar`` resource (a RadarFeed): the datagrams it reads and the picture it makes of them,
   correlator association included;
 - the ``camera`` resource (a CameraSensor): its frames, JPEG and decimated for viewing, or every
-  frame as PNG for replay (``frame_format="png"``, ``frame_period_s=0``), and the tracked box.
+  frame as PNG for replay (``frame_format="png"``, ``frame_period_s=0``), and the tracked box; of a
+  threaded camera (a :class:`~chaser_bt.vision.perception.PerceptionWorker`) the frames it processed
+  and their boxes, taken from its latest result after each tick (records are written on the tick's
+  thread only).
 
 Records are stamped with mission time (``log_time`` in ns). Crash safety: the MCAP file is written
 in small chunks and flushed to the operating system at least once a second of wall time (at the
@@ -138,6 +141,8 @@ class Recorder:
         self._last_frame_t = -math.inf
         self._last_picture_t: float | None = None
         self._recorded_frame: Any = None
+        self._camera_worker: Any = None
+        self._worker_result: Any = None
         self._rx = bytearray()
         self._undo: list[Callable[[], None]] = []
         self._runner: MissionRunner | None = None
@@ -194,7 +199,9 @@ class Recorder:
         if radar is not None and hasattr(radar, "source") and hasattr(radar, "update"):
             self._wrap_radar(radar)
         camera = resources.get("camera")
-        if camera is not None and hasattr(camera, "source") and hasattr(camera, "pipeline"):
+        if camera is not None and callable(getattr(camera, "latest", None)):
+            self._camera_worker = camera  # its frames are read in its own thread: recorded from its results
+        elif camera is not None and hasattr(camera, "source") and hasattr(camera, "pipeline"):
             self._wrap_camera(camera)
         return self
 
@@ -262,6 +269,7 @@ class Recorder:
     def _on_tick(self, changes: list) -> None:
         self._log_tree(ticked=True)
         self._drain_blackboard()
+        self._record_worker_result()
         self._log_camera_boxes()
 
     def _log_tree(self, ticked: bool) -> None:
@@ -349,15 +357,30 @@ class Recorder:
         self.write(S.TOPIC_CAMERA, fg.CompressedImage(timestamp=S.timestamp(frame.t), frame_id="camera",
                                                       data=buf.tobytes(), format=self.frame_format).encode(), t=frame.t)
 
+    def _record_worker_result(self) -> None:
+        """A threaded camera's latest processed frame (decimated like the others) and its box, once each."""
+        worker = self._camera_worker
+        result = None if worker is None else worker.latest()
+        if result is None or result is self._worker_result:
+            return
+        self._worker_result = result
+        self._record_frame(result.frame)
+        if self._recorded_frame is result.frame:
+            self._recorded_frame = None
+            self._write_boxes(result.frame, result.box)
+
     def _log_camera_boxes(self) -> None:
         sensor = getattr(self, "_camera", None)
         if sensor is None or sensor.last_frame is None or sensor.last_frame is not self._recorded_frame:
             return
         frame, track = sensor.last_frame, sensor.pipeline.track
         self._recorded_frame = None  # one annotation per recorded frame
+        self._write_boxes(frame, None if track is None else track.box)
+
+    def _write_boxes(self, frame: Any, box: Any) -> None:
         points = []
-        if track is not None:
-            x0, y0, x1, y1 = (float(v) for v in track.box)
+        if box is not None:
+            x0, y0, x1, y1 = (float(v) for v in box)
             points.append(fg.PointsAnnotation(
                 timestamp=S.timestamp(frame.t), type=fg.PointsAnnotationType.LineLoop, thickness=2.0,
                 outline_color=fg.Color(r=0.0, g=1.0, b=0.0, a=1.0),

@@ -2,6 +2,10 @@
 target's telemetry on the vehicle link — the same resources a rehearsal hands the tree, built from
 what the operator names on ``chaser-bt run`` instead of from a simulator.
 
+The camera's pipeline runs beside the tick by default (``perception="thread"``: a
+:class:`~chaser_bt.vision.perception.PerceptionWorker`, docs/vision.md), or inside it (``"inline"``).
+:func:`close_flight_sensors` stops and closes what was built, on every way out of a flight.
+
 The radar's pose comes from a calibration (``chaser-bt calibrate --json`` writes it, appendix A);
 its scan times plus ``time_offset_s`` are mission time (docs/radar.md).
 """
@@ -9,6 +13,7 @@ its scan times plus ``time_offset_s`` are mission time (docs/radar.md).
 from __future__ import annotations
 
 import json
+import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,8 +26,13 @@ from chaser_bt.radar.geometry import RadarPose
 from chaser_bt.radar.stream import UdpDatagramSource
 from chaser_bt.target_telemetry import TargetTelemetry
 
-__all__ = ["FlightSensorOptions", "FlightSensorError", "RESOURCE_FLAGS", "build_flight_sensors", "check_sensors",
-           "load_radar_pose"]
+__all__ = ["FlightSensorOptions", "FlightSensorError", "PERCEPTION_MODES", "RESOURCE_FLAGS", "build_flight_sensors",
+           "check_sensors", "close_flight_sensors", "load_radar_pose"]
+
+log = logging.getLogger(__name__)
+
+#: Where the camera pipeline runs on a flight: its own threads beside the tick, or inside the tick.
+PERCEPTION_MODES = ("thread", "inline")
 
 _POSE_FIELDS = ("lat_deg", "lon_deg", "alt_m", "yaw_deg", "pitch_deg", "roll_deg")
 
@@ -34,7 +44,8 @@ class FlightSensorError(ValueError):
 @dataclass(frozen=True)
 class FlightSensorOptions:
     """What the operator connected. ``radar_listen`` is ``HOST:PORT`` to receive radar datagrams on;
-    ``camera`` a video file, stream URL or device index (as ``cv2.VideoCapture`` takes it)."""
+    ``camera`` a video file, stream URL or device index (as ``cv2.VideoCapture`` takes it);
+    ``perception`` one of :data:`PERCEPTION_MODES`."""
 
     radar_listen: str | None = None
     radar_pose_file: Path | None = None
@@ -42,6 +53,11 @@ class FlightSensorOptions:
     camera: str | None = None
     camera_size: tuple[int, int] | None = None
     telemetry: bool = True
+    perception: str = "thread"
+
+    def __post_init__(self) -> None:
+        if self.perception not in PERCEPTION_MODES:
+            raise FlightSensorError(f"perception must be one of {', '.join(PERCEPTION_MODES)}, got {self.perception!r}")
 
 
 #: How an operator gives ``chaser-bt run`` each resource a leaf may require.
@@ -109,13 +125,28 @@ def build_flight_sensors(link: Any, clock: Any, options: FlightSensorOptions) ->
         host, port = _host_port(options.radar_listen)
         resources["radar"] = RadarFeed(UdpDatagramSource(host, port), pose, time_offset_s=options.radar_time_offset_s)
     if options.camera is not None:
-        resources["camera"] = _camera(options)
+        resources["camera"] = _camera(options, clock)
     if options.telemetry:
         resources["target_telemetry"] = TargetTelemetry.attach(link, clock.now)
     return resources
 
 
-def _camera(options: FlightSensorOptions) -> Any:
+def close_flight_sensors(resources: dict[str, Any]) -> None:
+    """Stop and close every resource :func:`build_flight_sensors` made that can be (the camera's
+    threads and source, the radar's socket). Never raises: it runs on the way out of a flight."""
+    for name, resource in resources.items():
+        close = getattr(resource, "close", None)
+        if callable(close):
+            try:
+                close()
+            except Exception:
+                log.exception("closing the %s raised", name)
+
+
+def _camera(options: FlightSensorOptions, clock: Any) -> Any:
+    """The camera resource: a CameraSensor over the capture, in a PerceptionWorker unless inline."""
+    import cv2
+
     from chaser_bt.vision.camera import CameraModel
     from chaser_bt.vision.detector.inference import Detector
     from chaser_bt.vision.frame_source import VideoCaptureSource
@@ -131,4 +162,13 @@ def _camera(options: FlightSensorOptions) -> Any:
     else:
         w = int(source.capture.get(3)) or 1920  # CAP_PROP_FRAME_WIDTH / HEIGHT
         h = int(source.capture.get(4)) or 1080
-    return CameraSensor(source, VisionPipeline(CameraModel(width_px=w, height_px=h), Detector(threads=1)))
+    # One intra-op thread for the detector (torch: process-wide; onnxruntime: its session).
+    sensor = CameraSensor(source, VisionPipeline(CameraModel(width_px=w, height_px=h), Detector(threads=1)))
+    if options.perception == "inline":
+        return sensor
+    from chaser_bt.vision.perception import PerceptionWorker
+
+    cv2.setNumThreads(1)  # the processing thread keeps to one core; the tick and the link have the other
+    fps = float(source.capture.get(cv2.CAP_PROP_FPS) or 0.0)
+    # A file is read at its own rate (it never blocks); a live camera blocks until its next frame anyway.
+    return PerceptionWorker(sensor, clock, max_fps=fps if 1.0 <= fps <= 240.0 else 30.0)

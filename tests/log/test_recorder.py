@@ -141,6 +141,66 @@ def test_belief_and_camera_frames_are_recorded_for_foxglove(tmp_path):
     assert np.allclose(belief.x_m, [-10.0, 0.0, 10.0]) and np.allclose(belief.y_m, [0.0, 10.0])
 
 
+def test_a_threaded_camera_is_recorded_from_its_results_on_the_ticks_thread(tmp_path):
+    from scipy.spatial.transform import Rotation
+
+    from chaser_bt.clock import WallClock
+    from chaser_bt.vision.camera import CameraModel
+    from chaser_bt.vision.detection import Detection
+    from chaser_bt.vision.perception import PerceptionWorker
+    from chaser_bt.vision.pipeline import CameraSensor, OwnshipPose, PipelineConfig, VisionPipeline
+
+    class Source:
+        def __init__(self):
+            self.reads = 0
+
+        def read(self, t):
+            self.reads += 1
+            return Frame(t, np.full((48, 64, 3), self.reads % 250, np.uint8), self.reads)
+
+        def close(self):
+            pass
+
+    config = PipelineConfig(detect_every=1, tracker_kinds=(), confirm_hits=1, focus=False)
+    pipeline = VisionPipeline(CameraModel(width_px=64, height_px=48, tilt_rad=0.0),
+                              lambda image: [Detection((30.0, 10.0, 40.0, 20.0), 0.9, 0, "s1000")], config)
+    source = Source()
+    wall = WallClock()
+    worker = PerceptionWorker(CameraSensor(source, pipeline), wall, max_fps=100.0)
+    _, ground = byte_pipe()
+    clock = ManualClock(0.0)
+    link = VehicleLink.over_pipe(ground, monotonic=clock.now)
+    runner = MissionRunner(load_tree_text("version: 1\ntrees:\n  T: {Wait: {duration_s: 100}}\n", source="<t>"), link, clock)
+    runner.setup()
+    recorder = attach_recorder(runner, link, {"camera": worker}, tmp_path / "cam.mcap", frame_format="png",
+                               frame_period_s=0.0)
+    assert worker.sensor.source is source  # not wrapped: it is read in the worker's thread, records are written on the tick's
+    worker.start()
+    results = []
+    try:
+        for k in range(3):
+            worker.submit(OwnshipPose(wall.now(), np.array([0.0, 0.0, 20.0]), np.zeros(3), Rotation.identity()))
+            for _ in range(2000):  # a new result (bounded: only a broken worker runs out)
+                latest = worker.latest()
+                if latest is not None and latest.estimate is not None and (not results or latest is not results[-1]):
+                    break
+                worker._stop.wait(0.01)
+            results.append(worker.latest())
+            clock.set(1.0 + 0.1 * k)
+            runner.tick()
+            runner.tick()  # a tick without a new result records nothing more
+    finally:
+        worker.stop()
+    recorder.close()
+    log = read_log(tmp_path / "cam.mcap")
+    images = [log.decode(m) for m in log.topic(S.TOPIC_CAMERA)]
+    assert len(images) == len({id(r) for r in results}) == 3
+    for image, result in zip(images, results):
+        assert np.array_equal(cv2.imdecode(np.frombuffer(image.data, np.uint8), cv2.IMREAD_COLOR), result.frame.image)
+    boxes = [log.decode(m) for m in log.topic(S.TOPIC_CAMERA_BOXES)]
+    assert len(boxes) == 3 and [(q.x, q.y) for q in boxes[0].points[0].points] == [(30, 10), (40, 10), (40, 20), (30, 20)]
+
+
 @pytest.mark.slow
 def test_sigkill_mid_flight_loses_at_most_the_last_second(tmp_path):
     path = tmp_path / "killed.mcap"

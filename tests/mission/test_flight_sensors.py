@@ -18,8 +18,11 @@ from chaser_bt.mission.flight_sensors import (
     FlightSensorError,
     FlightSensorOptions,
     build_flight_sensors,
+    close_flight_sensors,
     load_radar_pose,
 )
+from chaser_bt.vision.perception import PerceptionWorker
+from chaser_bt.vision.pipeline import CameraSensor
 
 HOME = GeoPoint(42.5445, -71.6105, 80.0)
 
@@ -102,8 +105,17 @@ def test_camera_from_a_video_file_and_telemetry_listener(tmp_path):
     link = _Link(LocalFrame(HOME))
     res = build_flight_sensors(link, ManualClock(), FlightSensorOptions(camera=path))
     camera = res["camera"]
+    assert isinstance(camera, PerceptionWorker)  # a flight's camera runs beside the tick by default
+    assert camera.max_fps == pytest.approx(10.0)  # a file is read at its own frame rate
     assert (camera.pipeline.camera.width_px, camera.pipeline.camera.height_px) == (160, 120)
-    assert camera.source.read(0.0).image.shape == (120, 160, 3)
+    assert camera.sensor.source.read(0.0).image.shape == (120, 160, 3)
     assert len(link.listeners) == 1 and "target_telemetry" in res
+    camera.start()
+    close_flight_sensors(res)
+    assert not camera.running and camera.health(0.0) == "perception worker stopped"
+    inline = build_flight_sensors(link, ManualClock(), FlightSensorOptions(camera=path, perception="inline", telemetry=False))
+    assert isinstance(inline["camera"], CameraSensor)
     with pytest.raises(FlightSensorError, match="--camera"):
         build_flight_sensors(link, ManualClock(), FlightSensorOptions(camera=str(tmp_path / "missing.avi"), telemetry=False))
+    with pytest.raises(FlightSensorError, match="perception must be one of thread, inline"):
+        FlightSensorOptions(camera=path, perception="process")
