@@ -469,6 +469,19 @@ def test_report_entry_point_rehearses_and_writes_the_folder(tmp_path, inputs, ca
 # -- Ray --------------------------------------------------------------------------------------------
 
 
+def _ray_here_on_the_loopback(mp: pytest.MonkeyPatch) -> None:
+    """A Ray instance started here binds to 127.0.0.1, without token authentication.
+
+    Ray swaps 127.0.0.1 for the machine's routable address unless multi-node clusters are "off"
+    (its switch for laptops); its token, left alone, would be written to ~/.ray.
+    """
+    mp.setenv("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
+    mp.setenv("RAY_AUTH_MODE", "disabled")
+    constants = sys.modules.get("ray._private.ray_constants")
+    if constants is not None:  # read at import: this process imported ray before
+        mp.setattr(constants, "ENABLE_RAY_CLUSTER", False)
+
+
 def _flown(rows: list[dict]) -> dict[str, dict]:
     """Rows by key without the keys that depend on where and how fast a run flew (``VARYING_KEYS``)."""
     return {r["key"]: {k: v for k, v in r.items() if k not in cm.VARYING_KEYS} for r in rows}
@@ -507,7 +520,7 @@ def test_a_node_without_the_mission_files_flies_the_copies_sent_with_the_task(tm
 
 @pytest.mark.slow
 def test_campaign_on_a_local_ray_instance_matches_the_local_executor(tmp_path, inputs, monkeypatch):
-    monkeypatch.setenv("RAY_AUTH_MODE", "disabled")  # no token in ~/.ray for an instance that lives as long as the test
+    _ray_here_on_the_loopback(monkeypatch)
     tree, scenario = inputs
     config = CampaignConfig(tree=tree, scenarios=[scenario], seeds=[1, 2], out_dir=tmp_path / "ray", ray_address="local",
                             camera=False)
@@ -539,19 +552,20 @@ def _free_ports(n: int) -> list[int]:
             s.close()
 
 
-def _ray_start(temp_dir: Path, log: Path, *args: str) -> int:
-    """``ray start ARGS`` for a node on the loopback, one CPU, its files under ``temp_dir``; the node's
-    process group (its daemons and workers), or a test failure with the command's output."""
+def _ray_start(temp_dir: Path, log: Path, *args: str, env: dict[str, str] | None = None) -> int:
+    """``ray start ARGS``, one CPU, its files under ``temp_dir``; the node's process group (its daemons
+    and workers), or a test failure with the command's output."""
     agent, grpc, metrics, runtime_env = _free_ports(4)
-    cmd = [sys.executable, "-m", "ray.scripts.scripts", "start", *args, "--node-ip-address", "127.0.0.1",
-           "--num-cpus", "1", "--num-gpus", "0", "--object-store-memory", str(100 * 2**20), "--temp-dir", str(temp_dir),
+    cmd = [sys.executable, "-m", "ray.scripts.scripts", "start", *args, "--num-cpus", "1", "--num-gpus", "0",
+           "--object-store-memory", str(100 * 2**20), "--temp-dir", str(temp_dir),
            "--min-worker-port", "0", "--max-worker-port", "0",  # workers on ports the OS picks
            "--dashboard-agent-listen-port", str(agent), "--dashboard-agent-grpc-port", str(grpc),
            "--metrics-export-port", str(metrics), "--runtime-env-agent-port", str(runtime_env), "--disable-usage-stats"]
     with log.open("w") as out:
-        proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
+        proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, start_new_session=True,
+                                env={**os.environ, **(env or {})})
         try:
-            rc = proc.wait(timeout=90)
+            rc = proc.wait(timeout=60)
         except subprocess.TimeoutExpired:
             rc = None
     if rc != 0:
@@ -575,18 +589,23 @@ def _stop_ray(groups: list[int], temp_dir: Path) -> None:
                 pass
         return pids
 
-    for sig in (signal.SIGTERM, signal.SIGKILL):
+    for sig, grace in ((signal.SIGTERM, 2.0), (signal.SIGKILL, 10.0)):  # Ray's daemons may take long over a SIGTERM
         for pid in ours():
             try:
                 os.kill(pid, sig)
             except ProcessLookupError:
                 pass
-        deadline = time.monotonic() + 10
+        deadline = time.monotonic() + grace
         while ours() and time.monotonic() < deadline:
             time.sleep(0.2)
         if not ours():
             return
     raise RuntimeError(f"Ray processes {ours()} outlived SIGKILL")
+
+
+#: The head's address: a loopback one Ray keeps (it swaps 127.0.0.1 for the machine's routable
+#: address). The second node, and the drivers here, reach it from 127.0.0.1: that node's address.
+HEAD_IP = "127.0.0.2"
 
 
 @pytest.fixture(scope="module")
@@ -596,13 +615,14 @@ def ray_cluster() -> Iterator[RayCluster]:
     import ray
 
     mp = pytest.MonkeyPatch()
-    mp.setenv("RAY_AUTH_MODE", "disabled")  # the nodes and this driver: loopback only, no token to share
+    mp.setenv("RAY_AUTH_MODE", "disabled")  # the nodes and the drivers here: no token to share
     temp_dir = Path(tempfile.mkdtemp(prefix="ray"))  # short: Ray's socket paths are limited to about 100 characters
     groups: list[int] = []
     try:
         port, = _free_ports(1)
-        address = f"127.0.0.1:{port}"
-        groups.append(_ray_start(temp_dir, temp_dir / "head.log", "--head", "--port", str(port), "--include-dashboard", "false"))
+        address = f"{HEAD_IP}:{port}"
+        groups.append(_ray_start(temp_dir, temp_dir / "head.log", "--head", "--port", str(port), "--node-ip-address", HEAD_IP,
+                                 "--include-dashboard", "false"))
         groups.append(_ray_start(temp_dir, temp_dir / "worker.log", "--address", address))
         ray.init(address=address, log_to_driver=False)
         try:
