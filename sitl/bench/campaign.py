@@ -3,8 +3,8 @@
 ``chaser-bt campaign TREE --scenarios DIR_OR_FILE --seeds 1-50 --workers N --out DIR`` runs one
 :func:`sitl.bench.rehearsal.rehearse` per (scenario, seed) in worker processes (``spawn``; each worker
 pins torch and the BLAS libraries to one thread, since runs are already parallel), or on a Ray
-cluster with ``--ray ADDRESS``. Every finished run is written at once as
-``DIR/runs/<scenario>/seed_<n>.json`` (and its trace as ``.npz``) by an atomic rename, so a campaign
+cluster with ``--ray ADDRESS`` (a run flown there names its node: ``worker_node``, ``worker_host``).
+Every finished run is written at once as ``DIR/runs/<scenario>/seed_<n>.json`` (and its trace as ``.npz``) by an atomic rename, so a campaign
 killed midway resumes where it stopped: a run whose JSON exists for the same tree and scenario
 contents is not flown again (unless it ended in ``error``: those are retried). At the end the runs are aggregated (success rate; median, IQR and
 p10-p90 of every DESIGN §7 key beside the paper's values) into ``campaign.json``, ``campaign.md``
