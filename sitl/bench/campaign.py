@@ -3,8 +3,8 @@
 ``chaser-bt campaign TREE --scenarios DIR_OR_FILE --seeds 1-50 --workers N --out DIR`` runs one
 :func:`sitl.bench.rehearsal.rehearse` per (scenario, seed) in worker processes (``spawn``; each worker
 pins torch and the BLAS libraries to one thread, since runs are already parallel), or on a Ray
-cluster with ``--ray ADDRESS``. Every finished run is written at once as
-``DIR/runs/<scenario>/seed_<n>.json`` (and its trace as ``.npz``) by an atomic rename, so a campaign
+cluster with ``--ray ADDRESS`` (a run flown there names its node: ``worker_node``, ``worker_host``).
+Every finished run is written at once as ``DIR/runs/<scenario>/seed_<n>.json`` (and its trace as ``.npz``) by an atomic rename, so a campaign
 killed midway resumes where it stopped: a run whose JSON exists for the same tree and scenario
 contents is not flown again (unless it ended in ``error``: those are retried). At the end the runs are aggregated (success rate; median, IQR and
 p10-p90 of every DESIGN §7 key beside the paper's values) into ``campaign.json``, ``campaign.md``
@@ -29,7 +29,9 @@ import math
 import multiprocessing
 import os
 import signal
+import socket
 import sys
+import tempfile
 import time
 from collections import Counter
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -49,6 +51,7 @@ __all__ = [
     "RunSpec",
     "SuccessRule",
     "METRIC_KEYS",
+    "VARYING_KEYS",
     "add_command",
     "aggregate",
     "find_scenarios",
@@ -64,6 +67,12 @@ log = logging.getLogger(__name__)
 METRIC_KEYS: tuple[str, ...] = (
     "t_airborne_s", "t_acquire_s", "target_in_fov_frac", "detection_frac", "radar_assoc_frac",
     "wrong_assoc_frac", "landed_dist_m", "followed_s", "sim_time_s", "wall_time_s",
+)
+
+#: Row keys that depend on the machine that flew a run and on its load, not on the run: the same run
+#: flown again, here, in a worker process or on a Ray node, has the same row but for these.
+VARYING_KEYS: tuple[str, ...] = (
+    "wall_time_s", "realtime_factor", "tick_ms_median", "sensors_wall_s", "worker_node", "worker_host",
 )
 
 #: ``--quick``: each run's simulated time is capped here (enough to launch, acquire and follow a while).
@@ -396,10 +405,12 @@ def _ignore_interrupts() -> None:
 
 
 def _execute_ray(specs: Sequence[RunSpec], runner: Callable[[RunSpec], dict], address: str) -> Iterator[tuple[RunSpec, dict]]:
-    """Runs as Ray tasks (one CPU each) on the cluster at ``address`` (``local`` starts one on this machine).
+    """Runs as Ray tasks (one CPU each, spread over the nodes) on the cluster at ``address``
+    (``local`` starts one on this machine).
 
     The driver's code folders travel with the job (``py_modules``), so cluster nodes need the
-    dependencies but not chaser-bt itself. Results come back to the driver, which stores them.
+    dependencies but not chaser-bt itself; the tree, its includes and the scenarios travel with the
+    tasks (:func:`_in_ray_task`). Results come back to the driver, which stores them.
     """
     try:
         import ray
@@ -411,11 +422,13 @@ def _execute_ray(specs: Sequence[RunSpec], runner: Callable[[RunSpec], dict], ad
 
     modules = [str(Path(m.__file__).parent) for m in (chaser_bt, behaviours, sitl)]
     started_here = not ray.is_initialized()
-    if started_here:
-        ray.init(address=None if address == "local" else address, runtime_env={"py_modules": modules},
-                 include_dashboard=False, log_to_driver=False)
-    task = ray.remote(num_cpus=1)(_in_worker)
-    refs = {task.remote(runner, spec): spec for spec in specs}
+    if started_here:  # "local" is ray.init's own: a new instance here even when a cluster runs on this machine
+        ray.init(address=address, runtime_env={"py_modules": modules}, include_dashboard=False, log_to_driver=False)
+    # SPREAD: a campaign's runs are alike and CPU-bound, so every node takes its share at once
+    # (Ray's default fills the driver's node first).
+    task = ray.remote(num_cpus=1, scheduling_strategy="SPREAD")(_in_ray_task)
+    inputs = ray.put(_input_files(specs))
+    refs = {task.remote(runner, spec, inputs): spec for spec in specs}
     try:
         while refs:
             done, _ = ray.wait(list(refs), num_returns=1)
@@ -426,6 +439,54 @@ def _execute_ray(specs: Sequence[RunSpec], runner: Callable[[RunSpec], dict], ad
             ray.cancel(ref, force=True)
         if started_here:
             ray.shutdown()
+
+
+def _input_files(specs: Sequence[RunSpec]) -> dict[str, bytes]:
+    """The files the runs read, by resolved path: each tree with every file it includes, each scenario."""
+    from chaser_bt.tree.documents import tree_files
+
+    files: dict[str, bytes] = {}
+    for spec in specs:
+        for path in (*tree_files(spec.tree), Path(spec.scenario)):
+            if str(path) not in files:
+                files[str(path)] = path.read_bytes()
+    return files
+
+
+def _on_this_node(spec: RunSpec, inputs: Mapping[str, bytes], scratch: Path) -> RunSpec:
+    """``spec`` as this node can fly it: in place where its files are here with the driver's contents
+    (the driver's machine, a shared file system), else on copies written under ``scratch`` at their
+    driver paths, so the tree's relative includes still resolve."""
+    if all(_same_file(Path(name), data) for name, data in inputs.items()):
+        return spec
+    for name, data in inputs.items():
+        copy = scratch / name.lstrip("/")
+        copy.parent.mkdir(parents=True, exist_ok=True)
+        copy.write_bytes(data)
+    return dataclasses.replace(spec, tree=str(scratch / spec.tree.lstrip("/")), scenario=str(scratch / spec.scenario.lstrip("/")))
+
+
+def _same_file(path: Path, data: bytes) -> bool:
+    try:
+        return path.read_bytes() == data
+    except OSError:
+        return False
+
+
+def _in_ray_task(runner: Callable[[RunSpec], dict], spec: RunSpec, inputs: Mapping[str, bytes]) -> dict:
+    """What a Ray task runs: fly ``spec`` (:func:`_on_this_node`), its row naming the driver's paths
+    and the node that flew it (``worker_node``: the Ray node id; ``worker_host``: the host name)."""
+    import ray
+
+    with tempfile.TemporaryDirectory(prefix="chaser-bt-run-") as scratch:
+        result = _in_worker(runner, _on_this_node(spec, inputs, Path(scratch)))
+    row = result.get("row")
+    if isinstance(row, dict):
+        for key, value in (("tree_path", spec.tree), ("scenario_path", spec.scenario)):
+            if key in row:
+                row[key] = value
+        row.update(worker_node=ray.get_runtime_context().get_node_id(), worker_host=socket.gethostname())
+    return result
 
 
 # -- the campaign ---------------------------------------------------------------------------------

@@ -8,10 +8,13 @@ import json
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 import pytest
@@ -466,13 +469,188 @@ def test_report_entry_point_rehearses_and_writes_the_folder(tmp_path, inputs, ca
 # -- Ray --------------------------------------------------------------------------------------------
 
 
+def _ray_here_on_the_loopback(mp: pytest.MonkeyPatch) -> None:
+    """A Ray instance started here binds to 127.0.0.1, without token authentication.
+
+    Ray swaps 127.0.0.1 for the machine's routable address unless multi-node clusters are "off"
+    (its switch for laptops); its token, left alone, would be written to ~/.ray.
+    """
+    mp.setenv("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
+    mp.setenv("RAY_AUTH_MODE", "disabled")
+    constants = sys.modules.get("ray._private.ray_constants")
+    if constants is not None:  # read at import: this process imported ray before
+        mp.setattr(constants, "ENABLE_RAY_CLUSTER", False)
+
+
+def _flown(rows: list[dict]) -> dict[str, dict]:
+    """Rows by key without the keys that depend on where and how fast a run flew (``VARYING_KEYS``)."""
+    return {r["key"]: {k: v for k, v in r.items() if k not in cm.VARYING_KEYS} for r in rows}
+
+
+def _local_rows(config: CampaignConfig) -> list[dict]:
+    """The same campaign flown here, by the local executor, into a folder of its own."""
+    return cm.run_campaign(dataclasses.replace(config, out_dir=config.out_dir.with_name("local"), ray_address=None),
+                           report=False).rows
+
+
+def test_a_node_without_the_mission_files_flies_the_copies_sent_with_the_task(tmp_path):
+    mission = tmp_path / "mission"
+    (mission / "parts").mkdir(parents=True)
+    (mission / "hop_main.yaml").write_text(HOP_MAIN)
+    for name, text in HOP_PARTS.items():
+        (mission / name).write_text(text)
+    shutil.copy(PATROL_SCENARIO, mission / "field.yaml")
+    config = CampaignConfig(tree=mission / "hop_main.yaml", scenarios=[mission / "field.yaml"], seeds=[2],
+                            out_dir=tmp_path / "out", camera=False)
+    spec, = config.specs()
+    sent = cm._input_files([spec])
+    assert sorted(sent) == sorted(str(mission.resolve() / n) for n in ("hop_main.yaml", *HOP_PARTS, "field.yaml"))
+    assert cm._on_this_node(spec, sent, tmp_path / "scratch") == spec  # the driver's machine: flown in place
+    here = cm.run_one(spec)["row"]
+
+    (mission / "field.yaml").write_text("an edited scenario\n")  # a node with other contents at the same path
+    shutil.move(mission / "parts", tmp_path / "elsewhere")  # and without the includes
+    copy = cm._on_this_node(spec, sent, tmp_path / "scratch")
+    assert copy.tree.startswith(str(tmp_path / "scratch")) and Path(copy.scenario).read_bytes() == PATROL_SCENARIO.read_bytes()
+    there = cm.run_one(copy)["row"]
+    assert there["outcome"] == "landed"
+    moved = {"tree_path", "scenario_path", *cm.VARYING_KEYS}
+    assert {k: v for k, v in there.items() if k not in moved} == {k: v for k, v in here.items() if k not in moved}
+
+
 @pytest.mark.slow
-def test_campaign_on_a_local_ray_instance(tmp_path, inputs):
-    pytest.importorskip("ray")
+def test_campaign_on_a_local_ray_instance_matches_the_local_executor(tmp_path, inputs, monkeypatch):
+    _ray_here_on_the_loopback(monkeypatch)
     tree, scenario = inputs
-    config = CampaignConfig(tree=tree, scenarios=[scenario], seeds=[1, 2], out_dir=tmp_path / "out", ray_address="local",
+    config = CampaignConfig(tree=tree, scenarios=[scenario], seeds=[1, 2], out_dir=tmp_path / "ray", ray_address="local",
                             camera=False)
     result = cm.run_campaign(config, report=False)
     assert result.executed == 2
     assert [r["outcome"] for r in result.rows] == ["landed", "landed"]
-    assert sorted(_stored(tmp_path / "out")) == ["seed_0001.json", "seed_0002.json"]
+    assert sorted(_stored(tmp_path / "ray")) == ["seed_0001.json", "seed_0002.json"]
+    assert len({r["worker_node"] for r in result.rows}) == 1  # one node: this machine
+    local = _local_rows(config)
+    assert "worker_node" not in local[0]  # only Ray runs name a node
+    assert _flown(result.rows) == _flown(local)
+
+
+@dataclasses.dataclass
+class RayCluster:
+    address: str  # the head's GCS, HOST:PORT
+    node_ids: set[str]
+
+
+def _free_ports(n: int) -> list[int]:
+    """``n`` distinct ports free on the loopback now (the OS's choice)."""
+    socks = [socket.socket() for _ in range(n)]
+    try:
+        for s in socks:
+            s.bind(("127.0.0.1", 0))
+        return [s.getsockname()[1] for s in socks]
+    finally:
+        for s in socks:
+            s.close()
+
+
+def _ray_start(temp_dir: Path, log: Path, *args: str, env: dict[str, str] | None = None) -> int:
+    """``ray start ARGS``, one CPU, its files under ``temp_dir``; the node's process group (its daemons
+    and workers), or a test failure with the command's output."""
+    agent, grpc, metrics, runtime_env = _free_ports(4)
+    cmd = [sys.executable, "-m", "ray.scripts.scripts", "start", *args, "--num-cpus", "1", "--num-gpus", "0",
+           "--object-store-memory", str(100 * 2**20), "--temp-dir", str(temp_dir),
+           "--min-worker-port", "0", "--max-worker-port", "0",  # workers on ports the OS picks
+           "--dashboard-agent-listen-port", str(agent), "--dashboard-agent-grpc-port", str(grpc),
+           "--metrics-export-port", str(metrics), "--runtime-env-agent-port", str(runtime_env), "--disable-usage-stats"]
+    with log.open("w") as out:
+        proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, start_new_session=True,
+                                env={**os.environ, **(env or {})})
+        try:
+            rc = proc.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            rc = None
+    if rc != 0:
+        _stop_ray([proc.pid], temp_dir)
+        pytest.fail(f"ray start {' '.join(args)} {'timed out' if rc is None else f'exited {rc}'}:\n{log.read_text()[-3000:]}")
+    return proc.pid
+
+
+def _stop_ray(groups: list[int], temp_dir: Path) -> None:
+    """End the nodes: every live process in their process groups or naming ``temp_dir``, politely, then not."""
+    def ours() -> list[int]:
+        pids = []
+        for proc in Path("/proc").iterdir():
+            if not proc.name.isdigit():
+                continue
+            try:
+                stat = (proc / "stat").read_text().rsplit(")", 1)[1].split()  # state, ppid, pgrp, ...
+                if stat[0] != "Z" and (int(stat[2]) in groups or str(temp_dir).encode() in (proc / "cmdline").read_bytes()):
+                    pids.append(int(proc.name))
+            except (OSError, IndexError, ValueError):
+                pass
+        return pids
+
+    for sig, grace in ((signal.SIGTERM, 2.0), (signal.SIGKILL, 10.0)):  # Ray's daemons may take long over a SIGTERM
+        for pid in ours():
+            try:
+                os.kill(pid, sig)
+            except ProcessLookupError:
+                pass
+        deadline = time.monotonic() + grace
+        while ours() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        if not ours():
+            return
+    raise RuntimeError(f"Ray processes {ours()} outlived SIGKILL")
+
+
+#: The head's address: a loopback one Ray keeps (it swaps 127.0.0.1 for the machine's routable
+#: address). The second node, and the drivers here, reach it from 127.0.0.1: that node's address.
+HEAD_IP = "127.0.0.2"
+
+
+@pytest.fixture(scope="module")
+def ray_cluster() -> Iterator[RayCluster]:
+    """A two-node Ray cluster on this machine: ``ray start --head`` and a second ``ray start --address``,
+    one CPU each, on the loopback, with files in a temporary folder; stopped however the tests end."""
+    import ray
+
+    mp = pytest.MonkeyPatch()
+    mp.setenv("RAY_AUTH_MODE", "disabled")  # the nodes and the drivers here: no token to share
+    temp_dir = Path(tempfile.mkdtemp(prefix="ray"))  # short: Ray's socket paths are limited to about 100 characters
+    groups: list[int] = []
+    try:
+        port, = _free_ports(1)
+        address = f"{HEAD_IP}:{port}"
+        groups.append(_ray_start(temp_dir, temp_dir / "head.log", "--head", "--port", str(port), "--node-ip-address", HEAD_IP,
+                                 "--include-dashboard", "false"))
+        groups.append(_ray_start(temp_dir, temp_dir / "worker.log", "--address", address))
+        ray.init(address=address, log_to_driver=False)
+        try:
+            deadline = time.monotonic() + 60
+            while len(alive := [n["NodeID"] for n in ray.nodes() if n["Alive"]]) < 2 and time.monotonic() < deadline:
+                time.sleep(0.2)
+        finally:
+            ray.shutdown()
+        assert len(alive) == 2, f"the cluster at {address} has {len(alive)} live node(s), not 2"
+        yield RayCluster(address, set(alive))
+    finally:
+        try:
+            _stop_ray(groups, temp_dir)
+        finally:
+            shutil.rmtree(temp_dir, ignore_errors=True)
+            mp.undo()
+
+
+@pytest.mark.slow
+def test_campaign_on_a_two_node_ray_cluster_spreads_and_matches_the_local_executor(tmp_path, inputs, ray_cluster):
+    tree, scenario = inputs
+    config = CampaignConfig(tree=tree, scenarios=[scenario], seeds=[1, 2, 3, 4], out_dir=tmp_path / "ray",
+                            ray_address=ray_cluster.address, camera=False)
+    result = cm.run_campaign(config, report=False)
+    assert result.executed == 4 and [r["outcome"] for r in result.rows] == ["landed"] * 4
+    stored = [json.loads(p.read_text()) for p in sorted((tmp_path / "ray/runs/field").glob("seed_*.json"))]
+    assert {r["worker_node"] for r in stored} == ray_cluster.node_ids  # runs landed on both nodes, each named
+    local = _local_rows(config)
+    assert _flown(result.rows) == _flown(local)
+    assert len({r["landed_dist_m"] for r in local}) > 1  # the seeds fly differently: equal rows are the same runs
+    assert cm.run_campaign(config, report=False).executed == 0  # the node field does not stop a resume
