@@ -245,8 +245,11 @@ class Autopilot:
 
     # ------------------------------------------------------------------ sensors, estimate
     def _in_fault(self, kind: str) -> bool:
+        windows = self._fault_windows[kind]
+        if not windows:  # checked twice a physics step; most scenarios script no faults
+            return False
         t = self.time_s
-        return any(a <= t < b for a, b in self._fault_windows[kind])
+        return any(a <= t < b for a, b in windows)
 
     def _update_sensors(self, h: float) -> None:
         t = self.time_s
