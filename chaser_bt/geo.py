@@ -37,6 +37,8 @@ _NED_ENU = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 _FLU_FRD = np.diag([1.0, -1.0, -1.0])
 _R_NED_ENU = Rotation.from_matrix(_NED_ENU)
 _R_FLU_FRD = Rotation.from_matrix(_FLU_FRD)
+# pymap3d's default ellipsoid, built once: by default pymap3d builds it anew on every conversion.
+_WGS84 = pymap3d.Ellipsoid.from_name("wgs84")
 
 
 @dataclass(frozen=True)
@@ -63,14 +65,14 @@ class LocalFrame:
     def to_enu(self, lat_deg: float, lon_deg: float, alt_m: float) -> np.ndarray:
         """Geodetic point -> ENU metres, shape (3,)."""
         o = self.origin
-        e, n, u = pymap3d.geodetic2enu(lat_deg, lon_deg, alt_m, o.lat_deg, o.lon_deg, o.alt_m)
+        e, n, u = pymap3d.geodetic2enu(lat_deg, lon_deg, alt_m, o.lat_deg, o.lon_deg, o.alt_m, ell=_WGS84)
         return np.array([e, n, u], dtype=float)
 
     def to_geodetic(self, enu: np.ndarray | tuple[float, float, float]) -> GeoPoint:
         """ENU metres -> geodetic point."""
         o = self.origin
         lat, lon, alt = pymap3d.enu2geodetic(
-            float(enu[0]), float(enu[1]), float(enu[2]), o.lat_deg, o.lon_deg, o.alt_m
+            float(enu[0]), float(enu[1]), float(enu[2]), o.lat_deg, o.lon_deg, o.alt_m, ell=_WGS84
         )
         return GeoPoint(float(lat), float(lon), float(alt))
 

@@ -99,6 +99,8 @@ class Simulator:
         """Whether the radio carries bytes now: scripted ``link_loss`` faults, unless overridden."""
         if self._link_override is not None:
             return self._link_override
+        if not self._link_faults:
+            return True
         t = round(self.autopilot.time_s, 6)  # a float sum of steps; match the ms the wire shows
         return not any(f.active(t) for f in self._link_faults)
 
@@ -161,7 +163,8 @@ class Simulator:
         self._radar_step()
         endpoint.update()
         up = self.link_up  # the radio's state at the time the bytes are sent
-        others = b"".join(intruder.telemetry_bytes(round(t, 6)) for intruder in self.intruders)  # their own radios
+        others = (b"".join(intruder.telemetry_bytes(round(t, 6)) for intruder in self.intruders)  # their own radios
+                  if self.intruders else b"")
         for port, channel in self._ports:
             out = endpoint.take_output(channel)  # each client its own link, as ArduCopter gives it
             if not up:

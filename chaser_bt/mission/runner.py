@@ -122,7 +122,7 @@ class MissionRunner:
         if clash:
             raise ValueError(f"resources may not replace {sorted(clash)}: pass them as link= and clock=")
         self._perf = perf_counter
-        self._bt = py_trees.trees.BehaviourTree(tree.root)
+        self._bt = _BehaviourTree(tree.root)
         self._next_tick_s: float | None = None
         self._stats = _TickStats()
         self._blackboard = py_trees.blackboard.Client(name="MissionRunner")
@@ -310,10 +310,40 @@ class MissionRunner:
     def _record_status_changes(self, now: float) -> list[StatusChange]:
         """Append this tick's status changes to :attr:`tick_log` (kept for replay and plots)."""
         changes = []
-        for node in self._bt.root.iterate():
+        for node in _nodes_post_order(self._bt.root, []):
             old = self._last_status.get(node.id, py_trees.common.Status.INVALID)
             if old != node.status:
                 self._last_status[node.id] = node.status
                 changes.append(StatusChange(now, node.name, old.name, node.status.name))
         self.tick_log.extend(changes)
         return changes
+
+
+class _BehaviourTree(py_trees.trees.BehaviourTree):
+    """py_trees' tree, less the walk over every node its tick makes for visitors when it has none.
+
+    With no visitors and no tick handlers, py_trees' tick is the root's tick and that walk; a
+    rehearsal ticks hundreds of times a wall second, so the walk is left out. With any of them the
+    tick is py_trees' own.
+    """
+
+    def tick(
+        self,
+        pre_tick_handler: Callable[[py_trees.trees.BehaviourTree], None] | None = None,
+        post_tick_handler: Callable[[py_trees.trees.BehaviourTree], None] | None = None,
+    ) -> None:
+        if (self.visitors or self.pre_tick_handlers or self.post_tick_handlers or pre_tick_handler is not None
+                or post_tick_handler is not None):
+            super().tick(pre_tick_handler, post_tick_handler)
+            return
+        for _ in self.root.tick():
+            pass
+        self.count += 1
+
+
+def _nodes_post_order(node: py_trees.behaviour.Behaviour, out: list) -> list:
+    """``node.iterate()``'s nodes in its order (children first), gathered without py_trees' nested generators."""
+    for child in node.children:
+        _nodes_post_order(child, out)
+    out.append(node)
+    return out

@@ -43,12 +43,23 @@ class PipeConnection(mavutil.mavfile):
 
     def __init__(self, end: PipeEnd, *, source_system: int, source_component: int) -> None:
         self.end = end
+        self._pending: Callable[[], int] | None = getattr(end, "pending", None)  # an end that can tell
         self._closed = False
         super().__init__(None, "pipe", source_system=source_system, source_component=source_component, input=False)
 
     def recv(self, n: int | None = None) -> bytes:
         # Hands over everything waiting; the parser keeps what it has not consumed yet.
         return self.end.read()
+
+    def recv_msg(self):  # noqa: ANN201 (pymavlink's message type)
+        """The next message, or None; mavfile's, less its costly empty round when there is nothing to parse.
+
+        With no bytes in the pipe and none left in the parser, mavfile.recv_msg would read nothing,
+        parse nothing and return None; a link polls once per simulator step, mostly to find that.
+        """
+        if self._pending is not None and not self._pending() and self.mav.buf_len() == 0:
+            return None
+        return super().recv_msg()
 
     def write(self, buf: bytes) -> int:
         if self._closed:

@@ -66,7 +66,7 @@ class VehicleState:
     lon_deg: float = _NAN
     alt_amsl_m: float = _NAN
     alt_rel_m: float = _NAN  # above home (GLOBAL_POSITION_INT.relative_alt)
-    attitude: Rotation | None = None  # FLU body -> ENU
+    attitude: Rotation | None = None  # FLU body -> ENU (a property, built on first read: see below)
     yaw_enu_rad: float = _NAN
     heading_deg: float = _NAN
     mode: str = ""  # ArduCopter mode name; "" before the first heartbeat
@@ -81,6 +81,9 @@ class VehicleState:
     prearm_ok: bool = False  # SYS_STATUS health has MAV_SYS_STATUS_PREARM_CHECK
     ekf_ok: bool = False  # EKF_STATUS_REPORT has EKF_REQUIRED_FLAGS
     statustexts: deque[tuple[float, int, str]] = field(default_factory=lambda: deque(maxlen=50))
+    # The latest reported (roll, pitch, yaw) not yet turned into ``attitude``: ATTITUDE arrives at
+    # 10 Hz and scipy's Rotation costs more than the rest of the message, so it is built when read.
+    _attitude_euler: tuple[float, float, float] | None = field(default=None, init=False, repr=False, compare=False)
 
     @property
     def ready_to_arm(self) -> bool:
@@ -95,6 +98,20 @@ class VehicleState:
         if self.landed_state == LandedState.UNDEFINED:
             return self.alt_rel_m > 0.5
         return self.landed_state in (LandedState.IN_AIR, LandedState.TAKEOFF, LandedState.LANDING)
+
+
+def _get_attitude(s: VehicleState) -> Rotation | None:
+    if s._attitude_euler is not None:
+        s._attitude, s._attitude_euler = body_to_enu_rotation(*s._attitude_euler), None
+    return s._attitude
+
+
+def _put_attitude(s: VehicleState, attitude: Rotation | None) -> None:
+    s._attitude, s._attitude_euler = attitude, None
+
+
+# The ``attitude`` field, read and written through these (the dataclass' __init__ and repr included).
+VehicleState.attitude = property(_get_attitude, _put_attitude, doc="FLU body -> ENU, as last reported.")
 
 
 def mode_name(custom_mode: int) -> str:
@@ -118,7 +135,7 @@ def _global_position(s: VehicleState, m: Any, frame: LocalFrame | None) -> None:
 
 
 def _set_attitude(s: VehicleState, roll: float, pitch: float, yaw: float) -> None:
-    s.attitude = body_to_enu_rotation(roll, pitch, yaw)
+    s._attitude_euler = (roll, pitch, yaw)
     s.yaw_enu_rad = heading_to_enu_yaw(yaw)
     s.heading_deg = math.degrees(enu_yaw_to_heading(s.yaw_enu_rad))
 

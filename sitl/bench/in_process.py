@@ -78,3 +78,6 @@ class _TappedEnd:
 
     def read(self) -> bytes:
         return self._end.read()
+
+    def pending(self) -> int:
+        return self._end.pending()

@@ -97,18 +97,19 @@ class _Scorer:
         self.landed_at: np.ndarray | None = None
         self.max_alt_m = 0.0
         self.distance_m = 0.0
-        self._last_xy: np.ndarray | None = None
+        self._last_xy: tuple[float, float] | None = None
 
     def observe(self, truth) -> None:
-        pos = np.asarray(truth.pos_enu, dtype=float)
-        self.max_alt_m = max(self.max_alt_m, float(pos[2]))
+        """Called every physics step, so on plain floats (np.hypot kept: it is what the figures were scored with)."""
+        x, y, z = np.asarray(truth.pos_enu, dtype=float).tolist()
+        self.max_alt_m = max(self.max_alt_m, z)
         if self._last_xy is not None:
-            self.distance_m += float(np.hypot(*(pos[:2] - self._last_xy)))
-        self._last_xy = pos[:2].copy()
+            self.distance_m += float(np.hypot(x - self._last_xy[0], y - self._last_xy[1]))
+        self._last_xy = (x, y)
         if not truth.on_ground:
             self.was_airborne = True
         elif self.was_airborne:  # on the ground after flying: the latest touchdown point
-            self.landed_at = pos.copy()
+            self.landed_at = np.array([x, y, z])
 
     @property
     def landed_dist_m(self) -> float | None:

@@ -372,14 +372,15 @@ class RehearsalObserver:
         rec.validated = _blackboard(VALIDATED_TRACK_KEY) is not None
         alt = self._takeoff_altitude()
         rec.alt_reached = alt is not None and math.isfinite(self.link.state.alt_rel_m) and self.link.state.alt_rel_m >= alt
-        own, att = np.asarray(truth.pos_enu, float), truth.attitude
+        own = np.asarray(truth.pos_enu, float)
         target = self.target_enu()
-        cam_pos = self.camera.position_enu(own, att)
-        if target is not None:
+        if target is not None:  # the attitude (a scipy Rotation, built on demand) only serves the target's scores
+            att = truth.attitude
             rec.in_fov = in_frustum(self.camera, target, own, att)
             est = _blackboard(ESTIMATE_KEY)
             if est is not None and est.t != self._last_est_t:
                 self._last_est_t = est.t
+                cam_pos = self.camera.position_enu(own, att)
                 rec.acquired = estimate_matches(est.position_enu, getattr(est, "bearing_enu", None), cam_pos, target)
         self._camera_frame(rec)
         self._radar_state(rec, own, airborne)

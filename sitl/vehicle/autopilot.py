@@ -25,7 +25,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -85,14 +86,33 @@ class CommandResult:
 
 @dataclass(frozen=True)
 class Estimate:
-    """The EKF's navigation solution: ENU position/velocity and geodetic position."""
+    """The EKF's navigation solution: ENU position/velocity and geodetic position.
+
+    The geodetic position is converted from ``pos_enu`` on first use only: the conversion costs more
+    than a physics step, and many readers (LOCAL_POSITION_NED, set-points) need only ENU.
+    """
 
     pos_enu: np.ndarray
     vel_enu: np.ndarray
-    alt_amsl_m: float
     alt_rel_m: float
-    lat_deg: float
-    lon_deg: float
+    frame: LocalFrame = field(repr=False)
+
+    @cached_property
+    def geodetic(self) -> GeoPoint:
+        """``pos_enu`` on WGS84 (altitude in the frame origin's datum: AMSL)."""
+        return self.frame.to_geodetic(self.pos_enu)
+
+    @property
+    def lat_deg(self) -> float:
+        return self.geodetic.lat_deg
+
+    @property
+    def lon_deg(self) -> float:
+        return self.geodetic.lon_deg
+
+    @property
+    def alt_amsl_m(self) -> float:
+        return self.geodetic.alt_m
 
 
 @dataclass(frozen=True)
@@ -225,8 +245,11 @@ class Autopilot:
 
     # ------------------------------------------------------------------ sensors, estimate
     def _in_fault(self, kind: str) -> bool:
+        windows = self._fault_windows[kind]
+        if not windows:  # checked twice a physics step; most scenarios script no faults
+            return False
         t = self.time_s
-        return any(a <= t < b for a, b in self._fault_windows[kind])
+        return any(a <= t < b for a, b in windows)
 
     def _update_sensors(self, h: float) -> None:
         t = self.time_s
@@ -632,14 +655,11 @@ class Autopilot:
 
     def position_estimate(self) -> Estimate:
         """The EKF's position: truth plus a small slow error; horizontally frozen after GPS loss."""
-        geo = self.frame.to_geodetic((self.ex, self.ey, self.ez))
         return Estimate(
             pos_enu=np.array([self.ex, self.ey, self.ez]),
             vel_enu=np.array([self.evx, self.evy, self.evz]),
-            alt_amsl_m=geo.alt_m,
             alt_rel_m=self.alt_rel(),
-            lat_deg=geo.lat_deg,
-            lon_deg=geo.lon_deg,
+            frame=self.frame,
         )
 
     def attitude(self) -> tuple[float, float, float, float, float, float]:

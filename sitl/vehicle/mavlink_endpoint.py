@@ -256,7 +256,7 @@ class MavlinkEndpoint:
         for severity, text in ap.pop_statustexts():
             self._send_statustext(severity, text)
         home = ap.home
-        if home != self._last_home:
+        if home is not self._last_home and home != self._last_home:  # identity first: a dataclass comparison every step adds up
             self._last_home = home
             if home is not None:
                 self._senders[mavlink2.MAVLINK_MSG_ID_HOME_POSITION]()  # sent whenever home is (re)set
