@@ -73,6 +73,7 @@ class Track:
     hits: int = 1
     trackers: list = field(default_factory=list)
     misses: int = 0  # detector frames in a row without a matching detection
+    seed: tuple[np.ndarray, tuple[int, int, int, int]] | None = None  # frame and window the trackers start on, until they do
 
     @property
     def centre(self) -> tuple[float, float]:
@@ -130,16 +131,25 @@ class TrackerBank:
         self.pruned = 0
 
     def _seed(self, frame: np.ndarray, track: Track) -> None:
+        """Seed ``track``'s trackers on ``frame``: started when first needed (:meth:`_started`), since
+        most seeds are replaced by the next detection before a tracker ever moves the box."""
         h, w = frame.shape[:2]
-        win = _window(track.box, self.min_window_px, w, h)
         track.trackers = []
-        for k in self.kinds:
-            tr = make_tracker(k)
-            try:
-                tr.init(frame, win)
-                track.trackers.append(tr)
-            except cv2.error as e:
-                log.debug("tracker %s failed to start: %s", k, e)
+        track.seed = (frame, _window(track.box, self.min_window_px, w, h)) if self.kinds else None
+
+    def _started(self, track: Track) -> list:
+        """``track``'s trackers, started now on the frame and window of its seed if they were not yet."""
+        if track.seed is not None:
+            frame, win = track.seed
+            track.seed = None
+            for k in self.kinds:
+                tr = make_tracker(k)
+                try:
+                    tr.init(frame, win)
+                    track.trackers.append(tr)
+                except cv2.error as e:
+                    log.debug("tracker %s failed to start: %s", k, e)
+        return track.trackers
 
     def correct(self, frame: np.ndarray, detections: Sequence[Detection], t: float,
                 region: tuple[float, float, float, float] | None = None, judge: bool = True) -> list[Track]:
@@ -174,7 +184,7 @@ class TrackerBank:
             if not order:
                 # The detector contradicts the track when it is at least as sure of something else.
                 contradicted = any(d.score >= track.score for j, d in enumerate(detections) if not covers[i, j])
-                if track.hits >= 2 and track.misses < self.max_misses and not contradicted and track.trackers:
+                if track.hits >= 2 and track.misses < self.max_misses and not contradicted and self._started(track):
                     track.misses += 1
                     kept.append(track)
                 else:
@@ -216,7 +226,7 @@ class TrackerBank:
     def _move(self, frame: np.ndarray, track: Track, t: float) -> bool:
         """Move ``track`` to its trackers' mean centre in ``frame``; False when every tracker lost it."""
         centres = []
-        for tr in track.trackers:
+        for tr in self._started(track):
             ok, (x, y, bw, bh) = tr.update(frame)
             if ok:
                 centres.append((x + bw / 2, y + bh / 2))

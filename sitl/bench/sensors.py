@@ -30,6 +30,7 @@ from __future__ import annotations
 import functools
 import logging
 import math
+import os
 import time
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Sequence
@@ -170,12 +171,22 @@ def calibrated_radar_pose(config: RadarConfig, home: GeoPoint, seed: int, durati
                         result.residual_rms_m, wall)
 
 
+def detector_threads() -> int:
+    """Threads for the rehearsal's detector: ``OMP_NUM_THREADS`` when set (a campaign worker sets 1:
+    the runs are its parallelism), else the cores this process may use, at most two. The detector
+    runs between the simulator's steps, never beside them, so a lone rehearsal gives it both cores."""
+    env = os.environ.get("OMP_NUM_THREADS", "")
+    if env.isdigit() and int(env) > 0:
+        return int(env)
+    return max(1, min(len(os.sched_getaffinity(0)), 2))
+
+
 @functools.lru_cache(maxsize=1)
 def shared_detector() -> Any:
-    """The shipped detector, loaded once per process, one thread (torch or onnxruntime)."""
+    """The shipped detector, loaded once per process, with :func:`detector_threads` threads (onnxruntime or torch)."""
     from chaser_bt.vision.detector.inference import Detector
 
-    return Detector(threads=1)
+    return Detector(threads=detector_threads())
 
 
 def shared_ground() -> GroundScene:

@@ -156,3 +156,25 @@ def test_tracked_boxes_go_through_the_refine_hook_between_detections():
     (track,) = bank.advance(_scene(102, 100), 0.1)
     assert len(seen) == 1 and seen[0][0] == pytest.approx([102, 100, 122, 120], abs=3.0)
     assert track.box == pytest.approx(tuple(seen[0][0] + [1.0, 0.0, 1.0, 0.0]))
+
+
+def test_trackers_start_only_when_needed_and_move_the_box_as_trackers_started_at_the_seed_would():
+    import cv2
+
+    bank = TrackerBank(["mosse", "medianflow"])
+    first = _scene(100, 100)
+    bank.correct(first, [_det(100, 100)], 0.0)
+    bank.correct(_scene(102, 101), [_det(102, 101)], 0.1)  # reseeded before any tracker moved the box
+    (track,) = bank.tracks
+    assert track.trackers == [] and track.seed is not None  # nothing started yet
+    seed_frame = _scene(102, 101)
+    # The same trackers started at once on the seed and moved by hand: the bank must agree with them.
+    ref = [cv2.legacy.TrackerMOSSE_create(), cv2.legacy.TrackerMedianFlow_create()]
+    for tr in ref:
+        tr.init(seed_frame, (96, 95, 32, 32))  # the 32-px window (min_window_px) around the 20-px box
+    later = _scene(106, 103)
+    (moved,) = bank.advance(later, 0.2)
+    centres = [(x + w / 2, y + h / 2) for ok, (x, y, w, h) in (tr.update(later) for tr in ref) if ok]
+    cx, cy = np.mean(centres, axis=0)
+    assert moved.centre == pytest.approx((cx, cy), abs=1e-6)
+    assert len(moved.trackers) == 2 and moved.seed is None
