@@ -87,6 +87,8 @@ class SensorOptions:
         camera_size: (width, height) pixels.
         camera_detection: False: the targets are never drawn (search-only runs).
         telemetry: the intruders' own MAVLink position as TargetTelemetry.
+        whole_frames: render every frame whole instead of only the regions the pipeline reads
+            (the reference a speed benchmark compares with; docs/vision.md, "Regions of interest").
     """
 
     radar: bool = True
@@ -95,6 +97,7 @@ class SensorOptions:
     camera_size: tuple[int, int] = (640, 480)
     camera_detection: bool = True
     telemetry: bool = True
+    whole_frames: bool = False
 
     def __post_init__(self) -> None:
         if self.radar_pose not in RADAR_POSE_MODES:
@@ -172,13 +175,11 @@ def calibrated_radar_pose(config: RadarConfig, home: GeoPoint, seed: int, durati
 
 
 def detector_threads() -> int:
-    """Threads for the rehearsal's detector: ``OMP_NUM_THREADS`` when set (a campaign worker sets 1:
-    the runs are its parallelism), else the cores this process may use, at most two. The detector
-    runs between the simulator's steps, never beside them, so a lone rehearsal gives it both cores."""
+    """Threads for the rehearsal's detector: ``OMP_NUM_THREADS`` when set, else 1. One is the measured
+    best on a shared machine: onnxruntime's pool spins while it waits, so a second thread takes the
+    core the simulator and the renderer need (a 120 s chase ran 3.6 times slower with two)."""
     env = os.environ.get("OMP_NUM_THREADS", "")
-    if env.isdigit() and int(env) > 0:
-        return int(env)
-    return max(1, min(len(os.sched_getaffinity(0)), 2))
+    return int(env) if env.isdigit() and int(env) > 0 else 1
 
 
 @functools.lru_cache(maxsize=1)
@@ -307,7 +308,7 @@ def build_sensors(vehicle: InProcessVehicle, options: SensorOptions, seed: int) 
             targets += [(SimTarget(intruder.spec.airframe, intruder), _always) for intruder in sim.intruders]
             targets += [(SimTarget(tg.kind, tg.path, k), tg.present) for k, tg in enumerate(scenario.targets)]
         out.frame_source = ScenarioFrameSource(sim, model, targets, seed, scenario.camera_world)
-        out.camera = CameraSensor(out.frame_source, VisionPipeline(model, _shipped_detector))
+        out.camera = CameraSensor(out.frame_source, VisionPipeline(model, _shipped_detector), whole_frames=options.whole_frames)
         out.resources["camera"] = out.camera
     if options.telemetry and sim.intruders:
         out.telemetry = TargetTelemetry.attach(vehicle.link, vehicle.clock.now)
