@@ -288,3 +288,25 @@ def test_a_missing_or_corrupt_int8_copy_falls_back_or_errors_naming_the_file(tmp
         Detector(w, backend="onnx-int8")
     with pytest.raises(ValueError, match="onnx-int8"):
         Detector(w, backend="int8")
+
+
+def test_quantize_detector_command_writes_the_int8_copy_that_auto_then_runs(tmp_path, capsys):
+    import cv2
+
+    from chaser_bt.cli import main
+    from sitl.bench.camera_dataset import DatasetRenderer
+
+    pytest.importorskip("onnxruntime")
+    w, onnx, q = _copy_weights(tmp_path)
+    q.unlink()
+    calib = tmp_path / "calib"
+    calib.mkdir()
+    rng, data = np.random.default_rng(3), DatasetRenderer("train", ground_size_px=1024)
+    for k in range(6):
+        cv2.imwrite(str(calib / f"{k}.jpg"), data.sample(rng).image)
+    assert main(["quantize-detector", "--weights", str(w), "--calib", str(calib), "--frames", "4"]) == 0
+    assert f"int8 copy written to {q} (calibrated on 4 frames)" in capsys.readouterr().out
+    det = Detector(w)
+    assert det.backend == "onnx-int8" and det.onnx_path == q
+    assert main(["quantize-detector", "--weights", str(tmp_path / "none.pt"), "--calib", str(calib)]) == 2
+    assert "--weights" in capsys.readouterr().err
