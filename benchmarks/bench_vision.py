@@ -9,6 +9,11 @@ families (meadow, farmland, arid, winter, suburb; keys ``*_families``) and in th
 share of labelled frames whose reported box is right (IoU >= 0.5), the bearing error p95 at the box
 centre on those frames (the acceptance's wording) and on every frame with an estimate.
 Speeds are single-threaded (torch and OpenCV), the setting measured fastest on the shared CPU.
+Detector figures are the float network's (ONNX when its copy is current, else torch); where an int8
+copy (``<stem>.int8.onnx``, ``chaser-bt quantize-detector``) sits beside the weights the same figures
+for it follow under the same key with ``_int8`` appended, its frames/s taken right after the float
+one's on the same frames (the ratio is what to read on a shared machine). The pipeline follows the
+auto backend (int8 when current).
 Usage: python benchmarks/bench_vision.py [--quick] [--weights W.pt] (default: the shipped drone detector)
 """
 
@@ -27,7 +32,7 @@ from scipy.spatial.transform import Rotation
 
 from chaser_bt.vision.camera import CameraModel
 from chaser_bt.vision.detector.evaluate import evaluate_detections, frames_per_second, iou_matrix
-from chaser_bt.vision.detector.inference import SHIPPED_WEIGHTS, Detector
+from chaser_bt.vision.detector.inference import SHIPPED_WEIGHTS, Detector, int8_path
 from chaser_bt.vision.frame_source import Frame
 from chaser_bt.vision.pipeline import OwnshipPose, PipelineConfig, VisionPipeline
 from chaser_bt.vision.projection import Projector
@@ -42,18 +47,32 @@ def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
     return math.degrees(math.atan2(np.linalg.norm(np.cross(a, b)), float(np.dot(a, b))))
 
 
+def variants(weights: str, **kwargs) -> dict[str, Detector]:
+    """The float detector (key ""; ONNX when its copy is current, else torch) and, when its int8 copy is
+    beside the weights, the int8 one (key "_int8")."""
+    from pathlib import Path
+
+    out = {"": Detector(weights, onnx_path=Path(weights).with_suffix(".onnx"), **kwargs)}  # an explicit float file: auto never picks int8
+    if int8_path(weights).exists():
+        out["_int8"] = Detector(weights, backend="onnx-int8", **kwargs)
+    return out
+
+
 def detector_metrics(n: int, seed: int, weights: str) -> dict:
+    """{(size, variant): (metrics, frames/s)}; the variants' frames/s back to back on the same frames."""
     data = DatasetRenderer("heldout")
     rng = np.random.default_rng(seed)
     frames = [data.sample(rng) for _ in range(n)]
     out = {}
     for size in (416, 832):
-        det = Detector(weights, image_size=size, conf_threshold=0.005, threads=1)
-        preds = [[(d.box, d.score, d.class_id) for d in det(f.image)] for f in frames]
-        m = evaluate_detections(preds, [frame_boxes(f) for f in frames], len(det.class_names))
-        det.conf_threshold = 0.25
-        fps = frames_per_second(det, [f.image for f in frames[: min(n, 100)]])
-        out[size] = (m, fps)
+        dets = variants(weights, image_size=size, conf_threshold=0.005, threads=1)
+        metrics = {}
+        for key, det in dets.items():
+            preds = [[(d.box, d.score, d.class_id) for d in det(f.image)] for f in frames]
+            metrics[key] = evaluate_detections(preds, [frame_boxes(f) for f in frames], len(det.class_names))
+        for key, det in dets.items():
+            det.conf_threshold = 0.25
+            out[size, key] = (metrics[key], frames_per_second(det, [f.image for f in frames[: min(n, 100)]]))
     return out
 
 
@@ -65,15 +84,16 @@ def domain_metrics(n: int, seed: int, weights: str) -> dict:
     """AP@0.5, precision and recall at 0.25 of the drone detector at 416 in the training and the held-out
     camera-world families (held-out split, half the frames chase views)."""
     out = {}
-    det = Detector(weights, image_size=416, conf_threshold=0.005, threads=1)
+    dets = variants(weights, image_size=416, conf_threshold=0.005, threads=1)
     for key, families in (("families", TRAINING_FAMILIES), ("cross", HELDOUT_FAMILIES)):
         data = DatasetRenderer("heldout", follow_share=0.5, families=families)
         rng = np.random.default_rng(seed)
         frames = [data.sample(rng) for _ in range(n)]
-        preds = [[(d.box, d.score, d.class_id) for d in det(f.image)] for f in frames]
-        m = evaluate_detections(preds, [frame_boxes(f) for f in frames], len(det.class_names))
-        out.update({f"ap50_416_{key}": round(m.ap50, 4), f"p_416_{key}": round(m.precision, 4), f"r_416_{key}": round(m.recall, 4),
-                    f"iou_416_{key}": round(m.iou, 4)})
+        for v, det in dets.items():
+            preds = [[(d.box, d.score, d.class_id) for d in det(f.image)] for f in frames]
+            m = evaluate_detections(preds, [frame_boxes(f) for f in frames], len(det.class_names))
+            out.update({f"ap50_416_{key}{v}": round(m.ap50, 4), f"p_416_{key}{v}": round(m.precision, 4),
+                        f"r_416_{key}{v}": round(m.recall, 4), f"iou_416_{key}{v}": round(m.iou, 4)})
     return out
 
 
@@ -84,13 +104,17 @@ def person_metrics(n: int, seed: int) -> dict:
     data = DatasetRenderer("heldout", kinds=PERSON_CLASSES)
     rng = np.random.default_rng(seed)
     frames = [data.sample(rng) for _ in range(n)]
-    det = Detector(SHIPPED_WEIGHTS["person_yolo"], image_size=416, conf_threshold=0.005, threads=1)
-    preds = [[(d.box, d.score, d.class_id) for d in det(f.image)] for f in frames]
-    m = evaluate_detections(preds, [frame_boxes(f, PERSON_CLASSES) for f in frames], 1)
-    det.conf_threshold = 0.25
-    fps = frames_per_second(det, [f.image for f in frames[: min(n, 100)]])
-    return {"ap50_person_416": round(m.ap50, 4), "iou_person_416": round(m.iou, 4), "p_person_416": round(m.precision, 4),
-            "r_person_416": round(m.recall, 4), "fps_person_416": round(fps, 1)}
+    out = {}
+    dets = variants(str(SHIPPED_WEIGHTS["person_yolo"]), image_size=416, conf_threshold=0.005, threads=1)
+    for v, det in dets.items():
+        preds = [[(d.box, d.score, d.class_id) for d in det(f.image)] for f in frames]
+        m = evaluate_detections(preds, [frame_boxes(f, PERSON_CLASSES) for f in frames], 1)
+        out.update({f"ap50_person_416{v}": round(m.ap50, 4), f"iou_person_416{v}": round(m.iou, 4), f"p_person_416{v}": round(m.precision, 4),
+                    f"r_person_416{v}": round(m.recall, 4)})
+    for v, det in dets.items():
+        det.conf_threshold = 0.25
+        out[f"fps_person_416{v}"] = round(frames_per_second(det, [f.image for f in frames[: min(n, 100)]]), 1)
+    return out
 
 
 def follow_metrics(n: int, seed: int, weights: str) -> dict:
@@ -162,13 +186,16 @@ def main() -> None:
     person = person_metrics(n_det // 2, 778)
     fol = follow_metrics(n_follow, 5, args.weights)
     det_backend = Detector(args.weights).backend
-    m416, fps416 = det[416]
-    m832, fps832 = det[832]
+    figures = {}
+    for v in sorted({v for _, v in det}):
+        m416, fps416 = det[416, v]
+        m832, fps832 = det[832, v]
+        figures.update({f"ap50_416{v}": round(m416.ap50, 4), f"ap50_832{v}": round(m832.ap50, 4), f"iou_416{v}": round(m416.iou, 4),
+                        f"p_416{v}": round(m416.precision, 4), f"r_416{v}": round(m416.recall, 4), f"f1_416{v}": round(m416.f1, 4),
+                        f"fps_416{v}": round(fps416, 1), f"fps_832{v}": round(fps832, 1)})
     print(json.dumps({
         "name": "vision",
-        "ap50_416": round(m416.ap50, 4), "ap50_832": round(m832.ap50, 4), "iou_416": round(m416.iou, 4),
-        "p_416": round(m416.precision, 4), "r_416": round(m416.recall, 4), "f1_416": round(m416.f1, 4),
-        "fps_416": round(fps416, 1), "fps_832": round(fps832, 1),
+        **figures,
         **domains,
         "pipeline_hz": round(fol["pipeline_hz"], 1),
         "bearing_err_deg_p95": round(fol["bearing_err_deg_p95"], 3),

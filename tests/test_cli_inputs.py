@@ -77,6 +77,11 @@ BAD_INPUTS = [
     (["train-refiner", "--data", "{yolo}", "--out", "r.pt", "--steps", "0"], "--steps"),
     (["eval-detector", "--data", "{yolo}", "--weights", str(ROOT / "README.md")], "--weights"),
     (["eval-detector", "--data", "{yolo}", "--sizes", "100"], "--sizes"),
+    (["quantize-detector", "--calib", "{tmp}/nothing"], "--calib"),
+    (["quantize-detector", "--calib", "{yolo}"], "--calib"),
+    (["quantize-detector", "--calib", "{yolo}", "--weights", str(ROOT / "README.md")], "--weights"),
+    (["quantize-detector", "--calib", "{yolo}", "--size", "100"], "--size"),
+    (["quantize-detector", "--calib", "{yolo}", "--out", NO_DIR + "/d.onnx"], "--out"),
 ]
 
 

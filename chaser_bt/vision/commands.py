@@ -1,4 +1,5 @@
-"""``chaser-bt train-detector``, ``train-refiner`` and ``eval-detector`` (wired into chaser_bt/cli.py by add_command).
+"""``chaser-bt train-detector``, ``train-refiner``, ``eval-detector`` and ``quantize-detector`` (wired into
+chaser_bt/cli.py by add_command).
 
 Data folders are in YOLO layout (images/*.jpg, labels/*.txt, classes.txt); render them with
 ``python -m sitl.bench.camera_dataset OUT --split train|heldout``.
@@ -99,6 +100,11 @@ def _train(args: argparse.Namespace) -> int:
         print(f"ONNX copy written to {export_onnx(out, out.with_suffix('.onnx'))}")
     except ImportError:
         print("onnx is not installed: no ONNX copy (inference uses torch)")
+    from chaser_bt.vision.detector.inference import int8_path
+
+    if int8_path(out).exists():
+        print(f"{int8_path(out)} is now older than the weights (not used): run chaser-bt quantize-detector --weights {out} "
+              "--calib DIR to renew it")
     return 0
 
 
@@ -149,6 +155,31 @@ def _eval(args: argparse.Namespace) -> int:
     return 0
 
 
+def _quantize(args: argparse.Namespace) -> int:
+    """``chaser-bt quantize-detector``: the int8 ONNX copy beside the weights, calibrated on training frames."""
+    from chaser_bt.vision.detector.inference import DEFAULT_WEIGHTS, int8_path
+    from chaser_bt.vision.detector.quantize import DEFAULT_EXCLUDE, quantize_detector, read_frames
+
+    weights = Path(args.weights or DEFAULT_WEIGHTS)
+    onnx_in = weights.with_suffix(".onnx")
+    out = Path(args.out) if args.out else int8_path(weights)
+    try:
+        _check_weights(weights)
+        if not onnx_in.is_file():
+            raise ValueError(f"{onnx_in}: no float ONNX copy beside the weights (train-detector writes one)")
+        try:
+            frames = read_frames(args.calib, args.frames)
+        except ValueError as e:
+            raise ValueError(f"--calib {e}") from None
+        quantize_detector(onnx_in, out, frames, image_size=args.size, exclude=() if args.all_layers else DEFAULT_EXCLUDE,
+                          per_channel=not args.per_tensor, method=args.method)
+    except (ValueError, FileNotFoundError) as e:
+        print(f"chaser-bt: {e}", file=sys.stderr)
+        return 2
+    print(f"int8 copy written to {out} (calibrated on {len(frames)} frames)")
+    return 0
+
+
 def _import_footage(args: argparse.Namespace) -> int:
     """``chaser-bt import-footage``: a CVAT export of real footage into train/ and val/ YOLO folders."""
     from chaser_bt.vision.footage import import_footage
@@ -189,7 +220,7 @@ def _check_weights(path: str | Path) -> None:
 
 
 def add_command(subparsers) -> None:
-    """Add ``train-detector``, ``train-refiner`` and ``eval-detector`` to the CLI's subparsers."""
+    """Add ``train-detector``, ``train-refiner``, ``eval-detector``, ``quantize-detector`` and ``import-footage`` to the CLI's subparsers."""
     help_ = "train the vision detector on a YOLO folder (seeded, resumable; Ctrl-C writes a checkpoint)"
     t = subparsers.add_parser("train-detector", help=help_, description=help_)
     t.add_argument("--data", required=True, metavar="DIR", help="YOLO folder (python -m sitl.bench.camera_dataset writes one; required)")
@@ -233,9 +264,28 @@ def add_command(subparsers) -> None:
                    help="input sizes to evaluate at, px, multiples of 32 (default 416 832)")
     e.add_argument("--threads", type=positive_int, default=1, metavar="N", help="torch threads (default 1)")
     e.add_argument("--limit", type=non_negative_int, default=0, metavar="N", help="use the first N images only (default 0: all)")
-    e.add_argument("--backend", choices=["auto", "torch", "onnx"], default="auto",
-                   help="auto: ONNX when a current .onnx file is beside the weights (default), else torch")
+    e.add_argument("--backend", choices=["auto", "torch", "onnx", "onnx-int8"], default="auto",
+                   help="auto: the int8 ONNX copy when a current .int8.onnx file is beside the weights, else the "
+                        "float one when a current .onnx file is, else torch (default auto)")
     e.set_defaults(handler=_eval)
+    help_ = ("write the detector's int8 ONNX copy (<weights>.int8.onnx, what the auto backend runs when it is current) "
+             "with onnxruntime's static quantization, calibrated on training frames")
+    q = subparsers.add_parser("quantize-detector", help=help_, description=help_)
+    q.add_argument("--weights", default=None, metavar="FILE.pt",
+                   help="detector weights with their float .onnx copy beside them (default: the shipped weights)")
+    q.add_argument("--calib", required=True, nargs="+", metavar="DIR",
+                   help="folders of training frames (YOLO folders or plain folders of .jpg/.png), never the evaluation sets (required)")
+    q.add_argument("--frames", type=non_negative_int, default=240, metavar="N",
+                   help="calibration frames in all, taken evenly across the folders (default 240; 0: every one)")
+    q.add_argument("--out", default=None, type=output_file, metavar="FILE.onnx",
+                   help="file to write (default: beside the weights, <stem>.int8.onnx)")
+    q.add_argument("--size", type=image_size, default=416, metavar="PX", help="input size of the calibration frames, px (default 416)")
+    q.add_argument("--method", choices=["percentile", "minmax", "entropy"], default="percentile",
+                   help="activation range calibration: percentile = the 99.999th of the calibration frames (default percentile)")
+    q.add_argument("--per-tensor", action="store_true", help="one weight scale per layer instead of per output channel (default: per channel)")
+    q.add_argument("--all-layers", action="store_true",
+                   help="quantize the first conv and the head too (default: both stay float)")
+    q.set_defaults(handler=_quantize)
     help_ = ("import a CVAT export (YOLO 1.1 or COCO 1.0, zip or folder) of your footage into train/ and val/ "
              "YOLO folders, split by contiguous chunks")
     f = subparsers.add_parser("import-footage", help=help_, description=help_)

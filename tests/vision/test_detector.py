@@ -110,7 +110,7 @@ def test_shipped_person_detector_finds_people_on_a_fresh_heldout_set():
     path = SHIPPED_WEIGHTS["person_yolo"]
     assert path.exists() and path.stat().st_size < 4_000_000
     det = shipped_detector("person_yolo", conf_threshold=0.005)
-    assert det.class_names == PERSON_CLASSES and det.backend in ("torch", "onnx")
+    assert det.class_names == PERSON_CLASSES and det.backend in ("torch", "onnx", "onnx-int8")
     data = DatasetRenderer("heldout", ground_size_px=1024, kinds=PERSON_CLASSES)
     rng = np.random.default_rng(20251122)
     frames = [data.sample(rng) for _ in range(40)]
@@ -185,3 +185,128 @@ def test_ctrl_c_during_training_writes_a_checkpoint_that_resumes(tmp_path):
     short = _CtrlCAtStep(-1)
     train_detector(TrainConfig(str(data), str(tmp_path / "w.pt"), steps=20, batch=1, image_size=64), progress=short)
     assert "nothing to train" in short.text
+
+
+def _matched_ious(a, b):
+    """IoU of each detection of ``a`` with its best same-class match in ``b`` (greedy, best score first)."""
+    used, ious = set(), []
+    for x in a:
+        cand = [(float(iou_matrix(np.array([x.box]), np.array([y.box]))[0, 0]), j) for j, y in enumerate(b)
+                if j not in used and y.class_id == x.class_id]
+        if cand:
+            iou, j = max(cand)
+            used.add(j)
+            ious.append(iou)
+    return ious
+
+
+def _agree(frames, fp32: Detector, int8: Detector) -> list:
+    """Per frame, the int8 detections against the float ones: counts within 1, every matched box IoU > 0.8."""
+    worst = []
+    for f in frames:
+        a, b = fp32(f), int8(f)
+        assert abs(len(a) - len(b)) <= 1, (a, b)
+        ious = _matched_ious(a, b)
+        assert len(ious) >= min(len(a), len(b)) - 1 and all(v > 0.8 for v in ious), (a, b, ious)
+        worst.extend(ious)
+    return worst
+
+
+def test_int8_copy_quantized_on_rendered_frames_gives_the_float_detections(tmp_path):
+    """Quantize the shipped float ONNX network on a few rendered training frames; on fresh held-out frames
+    the int8 network's detections match the float one's (count within 1, matched boxes IoU > 0.8); the
+    shipped int8 copy does too."""
+    pytest.importorskip("onnxruntime")
+    from chaser_bt.vision.detector.inference import DEFAULT_ONNX, int8_path
+    from chaser_bt.vision.detector.quantize import quantize_detector
+    from sitl.bench.camera_dataset import DatasetRenderer
+
+    calib_rng, test_rng = np.random.default_rng(7), np.random.default_rng(20260101)
+    train = DatasetRenderer("train", ground_size_px=1024, follow_share=0.5)  # the plain field: a family world takes ~30 s to build
+    calib = [train.sample(calib_rng).image for _ in range(10)]
+    heldout = DatasetRenderer("heldout", ground_size_px=1024, follow_share=0.5)
+    frames = [heldout.sample(test_rng).image for _ in range(12)]
+    out = quantize_detector(DEFAULT_ONNX, tmp_path / "q.int8.onnx", calib)
+    fp32 = Detector(backend="onnx", refiner=None)
+    fresh = Detector(backend="onnx-int8", onnx_path=out, refiner=None)
+    assert fresh.backend == "onnx-int8" and fresh.onnx_path == out
+    ious = _agree(frames, fp32, fresh)
+    assert len(ious) >= 8  # the frames have targets and both find them
+    shipped = Detector(backend="onnx-int8", refiner=None)
+    assert shipped.onnx_path == int8_path(DEFAULT_WEIGHTS) and int8_path(DEFAULT_WEIGHTS).stat().st_size < 1_000_000
+    _agree(frames, fp32, shipped)
+
+
+def _copy_weights(tmp_path):
+    """The shipped weights and float ONNX copy in a scratch folder (no refiner): (weights, onnx, int8 path)."""
+    import os
+    import shutil
+
+    from chaser_bt.vision.detector.inference import DEFAULT_ONNX, int8_path
+
+    w = tmp_path / "w.pt"
+    shutil.copy(DEFAULT_WEIGHTS, w)
+    shutil.copy(DEFAULT_ONNX, tmp_path / "w.onnx")
+    shutil.copy(int8_path(DEFAULT_WEIGHTS), int8_path(w))
+    t = w.stat().st_mtime
+    os.utime(tmp_path / "w.onnx", (t, t))
+    os.utime(int8_path(w), (t, t))
+    return w, tmp_path / "w.onnx", int8_path(w)
+
+
+def test_auto_backend_runs_the_int8_copy_only_while_it_is_current(tmp_path):
+    import os
+
+    pytest.importorskip("onnxruntime")
+    w, onnx, q = _copy_weights(tmp_path)
+    assert q.name == "w.int8.onnx"
+    det = Detector(w)
+    assert det.backend == "onnx-int8" and det.onnx_path == q
+    assert Detector(w, onnx_path=onnx).backend == "onnx"  # an explicit float file is what runs
+    assert Detector(w, backend="onnx").onnx_path == onnx
+    t = w.stat().st_mtime
+    os.utime(q, (t - 60, t - 60))  # weights retrained after the int8 copy was made: stale
+    assert Detector(w).backend == "onnx"
+    assert Detector(w, backend="onnx-int8").backend == "onnx-int8"  # asked for by name, it runs anyway
+    q.unlink()
+    assert Detector(w).backend == "onnx"
+    os.utime(onnx, (t - 60, t - 60))
+    assert Detector(w).backend == "torch"
+
+
+def test_a_missing_or_corrupt_int8_copy_falls_back_or_errors_naming_the_file(tmp_path):
+    pytest.importorskip("onnxruntime")
+    w, onnx, q = _copy_weights(tmp_path)
+    q.write_bytes(b"not an onnx model")
+    with pytest.warns(RuntimeWarning, match="w.int8.onnx"):
+        det = Detector(w)
+    assert det.backend == "onnx" and det.onnx_path == onnx
+    with pytest.raises(ValueError, match="w.int8.onnx"):
+        Detector(w, backend="onnx-int8")
+    q.unlink()
+    with pytest.raises(FileNotFoundError, match="w.int8.onnx"):
+        Detector(w, backend="onnx-int8")
+    with pytest.raises(ValueError, match="onnx-int8"):
+        Detector(w, backend="int8")
+
+
+def test_quantize_detector_command_writes_the_int8_copy_that_auto_then_runs(tmp_path, capsys):
+    import cv2
+
+    from chaser_bt.cli import main
+    from sitl.bench.camera_dataset import DatasetRenderer
+
+    pytest.importorskip("onnxruntime")
+    w, onnx, q = _copy_weights(tmp_path)
+    q.unlink()
+    calib = tmp_path / "calib"
+    calib.mkdir()
+    rng, data = np.random.default_rng(3), DatasetRenderer("train", ground_size_px=1024)
+    for k in range(6):
+        cv2.imwrite(str(calib / f"{k}.jpg"), data.sample(rng).image)
+    assert main(["quantize-detector", "--weights", str(w), "--calib", str(calib), "--frames", "4"]) == 0
+    assert f"int8 copy written to {q} (calibrated on 4 frames)" in capsys.readouterr().out
+    det = Detector(w)
+    assert det.backend == "onnx-int8" and det.onnx_path == q
+    assert main(["quantize-detector", "--weights", str(tmp_path / "none.pt"), "--calib", str(calib)]) == 2
+    assert "--weights" in capsys.readouterr().err

@@ -5,11 +5,14 @@ The default weights ship in ``chaser_bt/vision/weights/tiny_yolo.pt`` and load w
 download; :data:`SHIPPED_WEIGHTS` names every shipped model (``tiny_yolo``: s1000 and phantom;
 ``person_yolo``: person, for search and rescue) and :func:`shipped_detector` loads one by name. Torch uses ``threads`` intra-op threads (1 measured fastest on the shared 2-core CPU:
 see docs/vision.md). An ONNX copy can be exported with :func:`export_onnx`; with ``backend="auto"`` onnxruntime
-runs it when it is installed and the copy beside the weights is not older than them.
+runs it when it is installed and the copy beside the weights is not older than them. An int8 copy
+(``<stem>.int8.onnx``, :mod:`chaser_bt.vision.detector.quantize`, ``chaser-bt quantize-detector``) is
+preferred over the float one by "auto" under the same rule.
 """
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +23,8 @@ from chaser_bt.vision.detector.augment import letterbox
 from chaser_bt.vision.detector.model import DetectorConfig, TinyYolo, decode
 from chaser_bt.vision.detector.refine import BoxRefiner, refiner_path
 
-__all__ = ["Detection", "Detector", "DEFAULT_WEIGHTS", "DEFAULT_ONNX", "SHIPPED_WEIGHTS", "shipped_detector", "load_model", "nms", "export_onnx"]
+__all__ = ["Detection", "Detector", "DEFAULT_WEIGHTS", "DEFAULT_ONNX", "BACKENDS", "SHIPPED_WEIGHTS", "shipped_detector", "load_model", "nms",
+           "export_onnx", "int8_path"]
 
 _WEIGHTS_DIR = Path(__file__).resolve().parent.parent / "weights"
 DEFAULT_WEIGHTS = _WEIGHTS_DIR / "tiny_yolo.pt"
@@ -28,6 +32,19 @@ DEFAULT_ONNX = DEFAULT_WEIGHTS.with_suffix(".onnx")
 #: The detectors shipped in the package, by the name a tree uses.
 SHIPPED_WEIGHTS: dict[str, Path] = {"tiny_yolo": DEFAULT_WEIGHTS, "person_yolo": _WEIGHTS_DIR / "person_yolo.pt"}
 _MAX_NMS = 300
+#: What ``Detector(backend=...)`` accepts.
+BACKENDS = ("auto", "torch", "onnx", "onnx-int8")
+
+
+def int8_path(weights: str | Path) -> Path:
+    """Where the int8 ONNX copy of ``weights`` lives: beside them, ``<stem>.int8.onnx``."""
+    p = Path(weights)
+    return p.with_name(p.stem + ".int8.onnx")
+
+
+def _fresh(copy: Path, weights: Path) -> bool:
+    """``copy`` exists and is not older than ``weights`` (1 s of slack for file systems and checkouts)."""
+    return copy.exists() and weights.exists() and copy.stat().st_mtime >= weights.stat().st_mtime - 1.0
 
 
 def _load_blob(path: str | Path) -> dict:
@@ -78,9 +95,15 @@ class Detector:
             (:class:`chaser_bt.vision.detector.refine.BoxRefiner`): "auto" = the one shipped beside ``weights``
             when there is one, a path, or None for none.
         backend: "torch"; "onnx" to run ``onnx_path`` with onnxruntime (optional dependency, measured
-            faster on this CPU); "auto" = onnx when onnxruntime is installed and ``onnx_path`` exists
-            and is not older than ``weights``.
-        onnx_path: the ONNX copy (default: beside ``weights`` with the suffix .onnx).
+            faster on this CPU); "onnx-int8" to run the int8 copy (``onnx_path``, default
+            :func:`int8_path` of ``weights``; faster again on a CPU with VNNI); "auto" = onnx-int8 when
+            onnxruntime is installed, ``onnx_path`` is not given and the int8 copy exists and is not
+            older than ``weights``, else onnx when ``onnx_path`` (default the .onnx copy) exists and is
+            not older than ``weights``, else torch. An int8 copy that "auto" picked but onnxruntime
+            cannot load is skipped with a warning naming it; an explicit backend's unloadable file is
+            an error naming it (FileNotFoundError when missing, ValueError otherwise).
+        onnx_path: the ONNX file to run (default: beside ``weights``, ``<stem>.onnx`` for "onnx",
+            ``<stem>.int8.onnx`` for "onnx-int8").
     """
 
     def __init__(self, weights: str | Path = DEFAULT_WEIGHTS, image_size: int = 416, conf_threshold: float = 0.25,
@@ -89,27 +112,36 @@ class Detector:
                  refiner: str | Path | None = "auto") -> None:
         if image_size % 32:
             raise ValueError(f"image_size must be a multiple of 32, got {image_size}")
-        if backend not in ("torch", "onnx", "auto"):
-            raise ValueError(f"backend must be 'torch', 'onnx' or 'auto', got {backend!r}")
-        onnx_path = Path(weights).with_suffix(".onnx") if onnx_path is None else Path(onnx_path)
+        if backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {', '.join(repr(b) for b in BACKENDS)}, got {backend!r}")
+        weights = Path(weights)
+        session = None
         if backend == "auto":
-            fresh = onnx_path.exists() and Path(weights).exists() and onnx_path.stat().st_mtime >= Path(weights).stat().st_mtime - 1.0
-            backend = "onnx" if fresh and _have_onnxruntime() else "torch"
+            backend = "torch"
+            if _have_onnxruntime():
+                if onnx_path is None and _fresh(int8_path(weights), weights):
+                    try:
+                        session, backend, onnx_path = _session(int8_path(weights), threads), "onnx-int8", int8_path(weights)
+                    except ValueError as exc:
+                        warnings.warn(f"{exc}; running the float model", RuntimeWarning, stacklevel=2)
+                if session is None:
+                    onnx_path = weights.with_suffix(".onnx") if onnx_path is None else Path(onnx_path)
+                    backend = "onnx" if _fresh(onnx_path, weights) else "torch"
+        elif onnx_path is None:
+            onnx_path = int8_path(weights) if backend == "onnx-int8" else weights.with_suffix(".onnx")
+        #: "torch", "onnx" or "onnx-int8": what runs the network.
         self.backend = backend
+        #: The ONNX file onnxruntime runs (None with torch).
+        self.onnx_path = Path(onnx_path) if backend != "torch" else None
         torch.set_num_threads(threads)
         blob = _load_blob(weights)
         self.model = _model(blob)
         #: The weights were trained to score a box by its predicted IoU (``obj_iou``): a low score means a badly placed box.
         self.scores_are_iou = float(blob.get("obj_iou", 0.0)) > 0.0
         self.class_names = self.model.config.class_names
-        self._session = None
-        if backend == "onnx":
-            import onnxruntime
-
-            opts = onnxruntime.SessionOptions()
-            opts.intra_op_num_threads = threads
-            opts.inter_op_num_threads = 1
-            self._session = onnxruntime.InferenceSession(str(onnx_path), opts, providers=["CPUExecutionProvider"])
+        self._session = session
+        if backend != "torch" and session is None:
+            self._session = _session(self.onnx_path, threads)
         self.image_size = image_size
         self.conf_threshold = conf_threshold
         self.iou_threshold = iou_threshold
@@ -158,6 +190,21 @@ def shipped_detector(name: str, **kwargs) -> Detector:
     if name not in SHIPPED_WEIGHTS:
         raise ValueError(f"unknown detector {name!r}; shipped: {sorted(SHIPPED_WEIGHTS)}")
     return Detector(SHIPPED_WEIGHTS[name], **kwargs)
+
+
+def _session(path: Path, threads: int):
+    """An onnxruntime CPU session of ``path``; FileNotFoundError or ValueError naming the file when it cannot load."""
+    import onnxruntime
+
+    if not path.is_file():
+        raise FileNotFoundError(f"detector ONNX model not found: {path}")
+    opts = onnxruntime.SessionOptions()
+    opts.intra_op_num_threads = threads
+    opts.inter_op_num_threads = 1
+    try:
+        return onnxruntime.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
+    except Exception as exc:  # onnxruntime raises its own classes (InvalidProtobuf, Fail, ...)
+        raise ValueError(f"{path}: onnxruntime cannot load it ({type(exc).__name__}: {str(exc).strip()[:200]})") from None
 
 
 def _have_onnxruntime() -> bool:
