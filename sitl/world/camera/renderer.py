@@ -152,6 +152,10 @@ class Renderer:
         self._noise = np.clip(tile_rng.standard_normal((h + 64, w + 64, 3)) * 20.0, -127, 127).astype(np.int8)  # sigma 20
         self._models = {}
         self._ground_mean = tuple(float(c) for c in scene.texture.reshape(-1, 3).mean(axis=0))
+        # A frame of the ground's mean colour, copied where a fill is needed (a copy is a memcpy; a
+        # broadcast fill of a colour is ten times slower).
+        self._flat = np.empty((h, w, 3), np.uint8)
+        self._flat[:] = np.round(self._ground_mean).astype(np.uint8)
         effects = world.effects if world is not None else None
         self._vignette_lo = None if effects is None or effects.vignetting <= 0 else cv2.resize(
             vignette_map(w, h, effects.vignetting), (w // _COARSE, h // _COARSE), interpolation=cv2.INTER_AREA)
@@ -182,8 +186,7 @@ class Renderer:
             views = [(0, 0, w, h)]
             img = self._background(views[0], r_ce, c_enu, sun, lighting)
         else:
-            img = np.empty((h, w, 3), np.uint8)
-            img[:] = np.round(self._ground_mean).astype(np.uint8)
+            img = self._flat.copy()
             for x0, y0, x1, y1 in views:
                 img[y0:y1, x0:x1] = self._background((x0, y0, x1, y1), r_ce, c_enu, sun, lighting)
         if self.world is not None:
@@ -286,8 +289,7 @@ class Renderer:
         grids ``dist_lo`` and ``ground_lo`` cover."""
         w, h = size
         scene = self.scene
-        out = np.empty((h, w, 3), np.uint8)
-        out[:] = np.round(self._ground_mean).astype(np.uint8)
+        out = self._flat[:h, :w].copy()
         texels_per_px = np.where(ground_lo, dist_lo / (self.camera.focal_px[0] * scene.metres_per_px), np.inf)
         far_lo = np.clip((texels_per_px - 0.75) / 0.75, 0.0, 1.0).astype(np.float32)  # all far from 1.5 texels a pixel
         to_ground = scene.texture_to_ground()
