@@ -163,6 +163,10 @@ def test_build_sensors_gives_only_what_the_scenario_provides():
     assert sorted(sensors.resources) == ["camera", "radar"] and isinstance(sensors.resources["camera"], CameraSensor)
     assert vehicle.link.frame is not None  # the radar pose is placed in the frame of the home the vehicle reported
     assert sensors.frame_source.camera.width_px == 160
+    # The rendered camera reads out the pipeline's regions of interest unless whole frames are asked for.
+    assert sensors.frame_source.reads_regions and not sensors.camera.whole_frames
+    whole = build_sensors(InProcessVehicle(load_scenario(CHASE), 1), SensorOptions(radar=False, whole_frames=True), 1)
+    assert whole.camera.whole_frames
     with pytest.raises(ValueError, match="radar_pose"):
         SensorOptions(radar_pose="truth")
 
