@@ -35,9 +35,25 @@ def _wait_for_line(stream, needle: str, timeout_s: float) -> None:
     raise AssertionError(f"no line with {needle!r} within {timeout_s} s")
 
 
+# Long enough in simulated time to be still flying when the signal comes: the whole patrol takes
+# under a second of wall time now, less than the test may take to read the first tick's line.
+HOLD = """\
+<root BTCPP_format="4">
+  <BehaviorTree ID="Hold">
+    <Sequence name="hold">
+      <Wait name="wait" duration_s="590"/>
+      <AlwaysSuccess name="done"/>
+    </Sequence>
+  </BehaviorTree>
+</root>
+"""
+
+
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
 def test_rehearse_interrupted_writes_a_partial_report_and_exits_130(sig, tmp_path):
-    proc = _cli("rehearse", PATROL, "--scenario", SCENARIO, "--no-camera", "--json", "--show-ticks",
+    tree = tmp_path / "hold.xml"
+    tree.write_text(HOLD)
+    proc = _cli("rehearse", str(tree), "--scenario", SCENARIO, "--no-camera", "--json", "--show-ticks",
                 "--report", str(tmp_path / "report"))
     try:
         _wait_for_line(proc.stderr, "--- t = ", 120)  # the tree is ticking: the vehicle is being flown

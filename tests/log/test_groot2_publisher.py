@@ -200,11 +200,13 @@ def test_yaml_and_xml_forms_of_a_tree_describe_alike():
 # -- the CLI ------------------------------------------------------------------------------------
 
 
+# 400 s of simulated waiting: a couple of wall-clock seconds at the patrol's ~200x, long enough for the
+# monitor's client to catch the Wait running (30 s passed in 0.17 s, before the client's first ask).
 HOLD = """\
 <root BTCPP_format="4">
   <BehaviorTree ID="Hold">
     <Sequence name="hold">
-      <Wait name="wait" duration_s="30"/>
+      <Wait name="wait" duration_s="400"/>
       <AlwaysSuccess name="done"/>
     </Sequence>
   </BehaviorTree>
