@@ -3,7 +3,8 @@
 :class:`StreamToGround` sends, each tick, the ownship's status, the camera's target estimate
 (``/target/estimate``) when it is new, the radar tracks (from the ``radar=`` resource, the picture
 the radar behaviours see this tick) or else the radar cue (``/target/cue``), and at ``video_hz``
-the camera resource's last frame with the pipeline's current box drawn. The wire format is
+the camera resource's last frame with the pipeline's current box drawn (inline, a CameraSensor's
+last frame and track; threaded, a PerceptionWorker's latest result). The wire format is
 docs/ground.md (:mod:`chaser_bt.ground.protocol`); with ``key_file`` every datagram carries an
 HMAC (:mod:`chaser_bt.ground.auth`). Streaming never fails a mission: it is RUNNING
 every tick, whatever the network does (errors are dropped datagrams, counted and logged once).
@@ -25,6 +26,8 @@ from chaser_bt.ground.sender import GroundSender
 from chaser_bt.radar.feed import RadarFeed
 from chaser_bt.tree import NodeKind, input_port, register_behaviour
 from chaser_bt.vehicle.signing import load_key
+from chaser_bt.vision.frame_source import Frame
+from chaser_bt.vision.perception import PerceptionWorker
 from chaser_bt.vision.pipeline import CameraSensor
 
 Status = py_trees.common.Status
@@ -55,8 +58,9 @@ class StreamToGround(VehicleBehaviour):
     def setup(self, **kwargs: Any) -> None:
         super().setup(**kwargs)
         camera, radar = kwargs.get("camera"), kwargs.get("radar")
-        self.camera: CameraSensor | None = camera if isinstance(camera, CameraSensor) else None
-        if self.camera is not None:
+        self.camera: CameraSensor | PerceptionWorker | None = (
+            camera if isinstance(camera, (CameraSensor, PerceptionWorker)) else None)
+        if isinstance(self.camera, CameraSensor):
             self.camera.whole_frames = True  # the video shows whole frames, not the pipeline's regions of interest
         self.radar: RadarFeed | None = radar if isinstance(radar, RadarFeed) else None
         self.sender: GroundSender | None = None
@@ -121,15 +125,23 @@ class StreamToGround(VehicleBehaviour):
         hz = self.get_input("video_hz")
         if self.camera is None or not hz > 0 or now < self._next_frame_t - 1e-6:
             return
-        frame = self.camera.last_frame
+        frame, boxes = self._latest_view()
         if frame is None or frame.index == self._last_frame_index:
             return
-        track = self.camera.pipeline.track
-        boxes = [] if track is None else [Box(track.box, f"{track.class_name} {track.score:.2f}")]
         self._last_frame_index = frame.index
         period = 1.0 / hz
         self._next_frame_t = self._next_frame_t + period if self._next_frame_t + period > now else now + period
         self.sender.send_frame(frame.image, frame.t, boxes, self.get_input("jpeg_quality"))
+
+    def _latest_view(self) -> tuple[Frame | None, list[Box]]:
+        """The camera's latest frame and the box followed in it."""
+        if isinstance(self.camera, PerceptionWorker):
+            result = self.camera.latest()
+            if result is None:
+                return None, []
+            return result.frame, [] if result.box is None else [Box(result.box, result.label)]
+        track = self.camera.pipeline.track
+        return self.camera.last_frame, [] if track is None else [Box(track.box, track.label)]
 
     def shutdown(self) -> None:
         if self.sender is not None:

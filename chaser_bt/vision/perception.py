@@ -88,7 +88,8 @@ class PipelineSetup:
 
 @dataclass(frozen=True)
 class PerceptionResult:
-    """One processed frame: the estimate (None: no target in it), the frame and the followed box.
+    """One processed frame: the estimate (None: no target in it), the frame, the followed box and its
+    label (:attr:`chaser_bt.vision.trackers.Track.label`).
 
     ``processed_t`` is the clock's time when processing ended; ``estimate.t`` and ``frame.t`` are
     the frame's.
@@ -99,6 +100,7 @@ class PerceptionResult:
     box: tuple[float, float, float, float] | None
     processed_t: float
     sequence: int
+    label: str = ""
 
 
 @dataclass(frozen=True)
@@ -321,13 +323,14 @@ class PerceptionWorker:
                 track = pipeline.track
                 box = None if track is None else (float(track.box[0]), float(track.box[1]), float(track.box[2]),
                                                   float(track.box[3]))
+                label = "" if track is None else track.label
             except Exception as exc:  # a bad frame or a detector fault must not end perception
                 self._count_error(exc, f"processing frame {frame.index}")
                 continue
             done = self.clock.now()
             with self._lock:
                 self._processed += 1
-                self._result = PerceptionResult(frame, estimate, box, done, self._processed)
+                self._result = PerceptionResult(frame, estimate, box, done, self._processed, label)
 
     def _count_error(self, exc: Exception, what: str, read: bool = False) -> None:
         with self._lock:

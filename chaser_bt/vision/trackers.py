@@ -79,6 +79,11 @@ class Track:
     def centre(self) -> tuple[float, float]:
         return (0.5 * (self.box[0] + self.box[2]), 0.5 * (self.box[1] + self.box[3]))
 
+    @property
+    def label(self) -> str:
+        """What a person sees written by the box: the class and the last detection's score."""
+        return f"{self.class_name} {self.score:.2f}"
+
 
 def _window(box, min_px: float, w: int, h: int) -> tuple[int, int, int, int]:
     cx, cy = 0.5 * (box[0] + box[2]), 0.5 * (box[1] + box[3])

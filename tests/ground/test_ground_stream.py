@@ -327,6 +327,65 @@ trees:
     assert sorted(seqs) == list(range(len(seqs)))  # nothing lost on loopback
 
 
+def test_stream_to_ground_sends_the_boxed_video_of_a_threaded_camera():
+    """A real flight's camera runs in a PerceptionWorker: the video is its latest processed frame and box."""
+    from types import SimpleNamespace
+
+    from scipy.spatial.transform import Rotation
+
+    from chaser_bt.clock import WallClock
+    from chaser_bt.tree import load_tree_text
+    from chaser_bt.vehicle.state import VehicleState
+    from chaser_bt.vision.camera import CameraModel
+    from chaser_bt.vision.detection import Detection
+    from chaser_bt.vision.perception import PerceptionWorker
+    from chaser_bt.vision.pipeline import CameraSensor, PipelineConfig, VisionPipeline
+
+    ground = _listener()
+    port = ground.getsockname()[1]
+    detector = lambda image: [Detection((250.0, 180.0, 330.0, 240.0), 0.9, 0, "s1000")]  # noqa: E731
+    clock = WallClock()
+    worker = PerceptionWorker(CameraSensor(_StillCamera(), VisionPipeline(
+        CameraModel(width_px=640, height_px=480), detector,
+        PipelineConfig(detect_every=1, tracker_kinds=(), confirm_hits=1, focus=False))), clock, max_fps=50.0)
+    tree = load_tree_text(f"""
+version: 1
+trees:
+  Main:
+    ReactiveSequence:
+      children:
+        - ForceSuccess: {{child: {{VisionPipeline: {{}}}}}}
+        - StreamToGround: {{host: 127.0.0.1, port: {port}, video_hz: 20, jpeg_quality: 80}}
+""", source="<test>")
+    bt = py_trees.trees.BehaviourTree(tree.root)
+    bb = py_trees.blackboard.Client(name="test")
+    bb.register_key("/vehicle/state", access=py_trees.common.Access.WRITE)
+    bb.set("/vehicle/state", VehicleState(position_enu=np.array([0.0, 0.0, 20.0]), velocity_enu=np.zeros(3),
+                                          attitude=Rotation.identity()))
+    bt.setup(link=SimpleNamespace(frame=None), clock=clock, camera=worker)
+    assembler, frames = FrameAssembler(), []
+    try:
+        deadline = time.monotonic() + 20.0
+        while not frames and time.monotonic() < deadline:
+            bt.tick()
+            time.sleep(0.05)
+            try:
+                while True:
+                    msg = parse_datagram(ground.recv(65535))
+                    if not isinstance(msg, dict) and (whole := assembler.add(msg)) is not None:
+                        frames.append(whole)
+            except (BlockingIOError, socket.timeout):
+                pass
+            ground.settimeout(0.01)
+    finally:
+        worker.stop()
+        bt.shutdown()
+        ground.close()
+    assert frames, "no video from the threaded camera"
+    image = cv2.imdecode(np.frombuffer(frames[-1][2], np.uint8), cv2.IMREAD_COLOR)
+    assert image.shape == (480, 640, 3) and (image[210, 248:253, 2] > 180).any()  # the box, drawn in red
+
+
 def test_the_tree_example_in_the_docs_validates():
     from chaser_bt.tree import validate_tree_text
 
