@@ -12,6 +12,10 @@ ENU bearing through the smoothed attitude (:mod:`chaser_bt.vision.projection`), 
 flat ground (a person in search and rescue: range to where the bearing meets z = 0), and the two a
 :class:`~chaser_bt.cue.TargetEstimate` with a covariance that is tight across the bearing and loose
 along it.
+
+Each frame is planned before it is read (:meth:`VisionPipeline.plan`: detector frame or not, the focus
+window, the trackers' neighbourhoods), so a camera that reads out regions of interest (the
+simulator's) is asked for only those parts (:class:`CameraSensor`).
 """
 
 from __future__ import annotations
@@ -107,13 +111,12 @@ class PipelineConfig:
 
 @dataclass(frozen=True)
 class FramePlan:
-    """What the pipeline does with the frame at ``t``, decided before the frame is read: the smoothed
+    """What the pipeline does with the next frame, decided before the frame is read: the smoothed
     attitude and camera position, the cue's position, whether the detector runs and where it looks
     (``window``; None: the whole frame), whether a track the detector did not see there counts against
     it (``judge``), and ``regions``, the only parts of the frame the pipeline will read (the focus
     window, the trackers' neighbourhoods; None: all of it), for a camera that reads out regions."""
 
-    t: float
     attitude: Rotation
     camera_enu: np.ndarray
     cue_enu: np.ndarray | None
@@ -191,7 +194,7 @@ class VisionPipeline:
         regions: tuple[Region, ...] | None = None
         if not detect or window is not None:
             regions = tuple(self._track_regions()) + (() if window is None else (window.region,))
-        return FramePlan(t, att, cam, cue_enu, detect, window, judge, regions)
+        return FramePlan(att, cam, cue_enu, detect, window, judge, regions)
 
     def process(self, frame: Frame, ownship: OwnshipPose, target_range_m: float | None = None,
                 cue: TargetCue | None = None, plan: FramePlan | None = None) -> TargetEstimate | None:

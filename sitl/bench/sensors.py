@@ -175,9 +175,10 @@ def calibrated_radar_pose(config: RadarConfig, home: GeoPoint, seed: int, durati
 
 
 def detector_threads() -> int:
-    """Threads for the rehearsal's detector: ``OMP_NUM_THREADS`` when set, else 1. One is the measured
-    best on a shared machine: onnxruntime's pool spins while it waits, so a second thread takes the
-    core the simulator and the renderer need (a 120 s chase ran 3.6 times slower with two)."""
+    """Threads for the rehearsal's detector: ``OMP_NUM_THREADS`` when set, else 1. One is the safe
+    choice on a shared machine: onnxruntime's pool spins while it waits, so a second thread can take
+    the core the simulator and the renderer need (a two-thread run here was much slower under load;
+    not measured on an idle machine)."""
     env = os.environ.get("OMP_NUM_THREADS", "")
     return int(env) if env.isdigit() and int(env) > 0 else 1
 

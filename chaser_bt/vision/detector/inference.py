@@ -24,7 +24,7 @@ from chaser_bt.vision.detector.model import DetectorConfig, TinyYolo, decode
 from chaser_bt.vision.detector.refine import BoxRefiner, refiner_path
 
 __all__ = ["Detection", "Detector", "DEFAULT_WEIGHTS", "DEFAULT_ONNX", "BACKENDS", "SHIPPED_WEIGHTS", "shipped_detector", "load_model", "nms",
-           "export_onnx", "int8_path"]
+           "export_onnx", "int8_path", "network_input"]
 
 _WEIGHTS_DIR = Path(__file__).resolve().parent.parent / "weights"
 DEFAULT_WEIGHTS = _WEIGHTS_DIR / "tiny_yolo.pt"
@@ -40,6 +40,11 @@ def int8_path(weights: str | Path) -> Path:
     """Where the int8 ONNX copy of ``weights`` lives: beside them, ``<stem>.int8.onnx``."""
     p = Path(weights)
     return p.with_name(p.stem + ".int8.onnx")
+
+
+def network_input(letterboxed_bgr: np.ndarray) -> np.ndarray:
+    """A letterboxed BGR image as the network takes it: (1, 3, H, W), RGB, float32 in [0, 1]."""
+    return (np.ascontiguousarray(letterboxed_bgr[..., ::-1].transpose(2, 0, 1), np.float32) / 255.0)[None]
 
 
 def _fresh(copy: Path, weights: Path) -> bool:
@@ -153,7 +158,7 @@ class Detector:
 
     def __call__(self, frame_bgr: np.ndarray) -> list[Detection]:
         img, scale, (px, py) = letterbox(frame_bgr, self.image_size)
-        x = torch.from_numpy(np.ascontiguousarray(img[..., ::-1].transpose(2, 0, 1))).float().div_(255.0)[None]
+        x = torch.from_numpy(network_input(img))
         with torch.inference_mode():
             raw = self.model(x) if self._session is None else torch.from_numpy(self._session.run(None, {"images": x.numpy()})[0])
             out = decode(raw, self.model.config.stride)[0].numpy()

@@ -23,7 +23,8 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from chaser_bt.vision.detector.inference import int8_path
+from chaser_bt.vision.detector.augment import letterbox
+from chaser_bt.vision.detector.inference import int8_path, network_input
 
 __all__ = ["DEFAULT_EXCLUDE", "CALIBRATION_METHODS", "FrameReader", "int8_path", "quantize_detector", "read_frames"]
 
@@ -61,10 +62,7 @@ class FrameReader:
     """onnxruntime's calibration data reader over BGR frames, each letterboxed and scaled as :class:`Detector` does."""
 
     def __init__(self, frames: Sequence[np.ndarray], image_size: int = 416, input_name: str = "images") -> None:
-        from chaser_bt.vision.detector.augment import letterbox
-
-        self._inputs = [np.ascontiguousarray(letterbox(f, image_size)[0][..., ::-1].transpose(2, 0, 1), np.float32)[None] / 255.0
-                        for f in frames]
+        self._inputs = [network_input(letterbox(f, image_size)[0]) for f in frames]
         self._name = input_name
         self._next, self._end = 0, len(self._inputs)
 

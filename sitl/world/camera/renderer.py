@@ -13,6 +13,7 @@ Randomness comes only from the ``rng`` passed to :meth:`Renderer.render`.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 from typing import Sequence
@@ -438,22 +439,17 @@ def viewports(regions: Sequence[Region] | None, width: int, height: int, margin_
              min(int(math.ceil((x1 + margin_px) / _BLOCK)) * _BLOCK, width), min(int(math.ceil((y1 + margin_px) / _BLOCK)) * _BLOCK, height)]
         if v[2] > v[0] and v[3] > v[1]:
             views.append(v)
-    merged = True
-    while merged:  # merge until no two views overlap (their union's box replaces them)
-        merged = False
-        for i in range(len(views)):
-            for j in range(i + 1, len(views)):
-                a, b = views[i], views[j]
-                if a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]:
-                    views[i] = [min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3])]
-                    del views[j]
-                    merged = True
-                    break
-            if merged:
-                break
+    while pair := next(((i, j) for i, j in itertools.combinations(range(len(views)), 2) if _overlap(views[i], views[j])), None):
+        i, j = pair  # the two become their union's box, until no two views overlap
+        a, b = views[i], views.pop(j)
+        views[i] = [min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3])]
     if sum((v[2] - v[0]) * (v[3] - v[1]) for v in views) > max_share * width * height:
         return None
     return [(v[0], v[1], v[2], v[3]) for v in views]
+
+
+def _overlap(a: Sequence[int], b: Sequence[int]) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
 
 
 def _rows(mask_lo: np.ndarray, height: int) -> tuple[int, int] | None:
