@@ -30,15 +30,13 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from chaser_bt.geo import LocalFrame
-from chaser_bt.radar.report import encode_scan
 from sitl.vehicle.autopilot import Autopilot
 from sitl.vehicle.mavlink_endpoint import Channel, MavlinkEndpoint
 from sitl.vehicle.physics import PHYSICS_DT
 from sitl.world.intruders import Intruder
 from sitl.world.radar.model import GroundRadar, ScanTruth
-from sitl.world.radar.udp import RadarUdpSender
 from sitl.world.scenario import Scenario
+from sitl.world.surroundings import Surroundings
 
 __all__ = ["Port", "Simulator"]
 
@@ -72,17 +70,7 @@ class Simulator:
         self._ports: list[tuple[Port, Channel]] = []
         self._link_override: bool | None = None
         self._link_faults = tuple(f for f in scenario.faults if f.kind == "link_loss")
-        self.radar: GroundRadar | None = None
-        self.radar_truth: ScanTruth | None = None  # scoring only: the last scan's track -> object
-        self._radar_consumers: list[Callable[[bytes], None]] = []
-        self._next_scan_s = 0.0
-        frame = LocalFrame(scenario.home)
-        self.intruders = [Intruder(spec, np.random.default_rng([seed, 0x1d7, k]), frame)
-                          for k, spec in enumerate(scenario.intruders)]
-        if scenario.radar is not None:
-            self.radar = GroundRadar(scenario.radar, LocalFrame(scenario.home), np.random.default_rng([seed, 0x5ada7]))
-            if scenario.radar.udp_port is not None:
-                self._radar_consumers.append(RadarUdpSender(scenario.radar.udp_host, scenario.radar.udp_port))
+        self.surroundings = Surroundings(self.scenario, seed)
 
     @property
     def time_s(self) -> float:
@@ -109,36 +97,26 @@ class Simulator:
         """Force the link up or down (tests); ``None`` returns it to the scenario's script."""
         self._link_override = up
 
+    @property
+    def intruders(self) -> list[Intruder]:
+        return self.surroundings.intruders
+
+    @property
+    def radar(self) -> GroundRadar | None:
+        return self.surroundings.radar
+
+    @property
+    def radar_truth(self) -> ScanTruth | None:
+        """Scoring only: the last radar scan's track -> object."""
+        return self.surroundings.radar_truth
+
     def add_radar_consumer(self, consumer: Callable[[bytes], None]) -> None:
         """Hand every radar datagram to ``consumer`` too (e.g. a ``QueueDatagramSource.push``)."""
-        self._radar_consumers.append(consumer)
+        self.surroundings.add_radar_consumer(consumer)
 
     def radar_objects(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """What the radar can see now: the vehicle while airborne and the scripted targets present."""
-        t = self.autopilot.time_s
-        truth = self.autopilot.truth
-        objs = {}
-        if not truth.on_ground:
-            objs["ownship"] = (np.asarray(truth.pos_enu, float), np.asarray(truth.vel_enu, float))
-        for tgt in self.scenario.targets:
-            if tgt.present(t) and tgt.radar_visible:
-                objs[tgt.name] = (tgt.path.position_enu(t), tgt.path.velocity_enu(t))
-        for intruder in self.intruders:
-            objs[intruder.name] = (intruder.pos.copy(), intruder.vel.copy())
-        return objs
-
-    def _radar_step(self) -> None:
-        t = self.autopilot.time_s
-        if self.radar is None or t < self._next_scan_s - 1e-9:
-            return
-        self._next_scan_s += self.radar.dt
-        out = self.radar.scan(round(t, 6), self.radar_objects())
-        if out is None:
-            return
-        scan, self.radar_truth = out
-        datagram = encode_scan(scan)
-        for consumer in self._radar_consumers:
-            consumer(datagram)
+        return self.surroundings.radar_objects(self.autopilot.time_s, self.autopilot.truth)
 
     def attach(self, port: Port) -> None:
         """Serve MAVLink on ``port`` from the next step on."""
@@ -156,15 +134,13 @@ class Simulator:
             data = port.read()
             if up:
                 endpoint.receive(data, channel)
-        self.autopilot.step(self.dt)
-        t = self.autopilot.time_s
-        for intruder in self.intruders:
-            intruder.step(t, self.dt)
-        self._radar_step()
+        autopilot = self.autopilot
+        autopilot.step(self.dt)
+        t = autopilot.time_s
+        self.surroundings.step(t, self.dt, lambda: autopilot.truth)
         endpoint.update()
         up = self.link_up  # the radio's state at the time the bytes are sent
-        others = (b"".join(intruder.telemetry_bytes(round(t, 6)) for intruder in self.intruders)  # their own radios
-                  if self.intruders else b"")
+        others = self.surroundings.intruder_telemetry(t)  # their own radios
         for port, channel in self._ports:
             out = endpoint.take_output(channel)  # each client its own link, as ArduCopter gives it
             if not up:

@@ -1,0 +1,88 @@
+"""What a scenario puts around the vehicle: its intruders and its ground radar, on the vehicle's clock.
+
+The built-in simulator (:mod:`sitl.simulator`) and ArduCopter flying inside our world
+(:mod:`sitl.ardupilot`) both fly in the same surroundings: each physics step they hand the vehicle's
+true state in, the intruders move, and at each radar scan the radar sees the vehicle (while
+airborne, as ``ownship``), the scripted targets present and the intruders, and sends the scan as one
+JSON datagram to every consumer (a UDP sender when the scenario names a port, the rehearsal's
+in-process queue). Each intruder's pilot and the radar draw from their own random streams, seeded
+from the run's seed, so the surroundings are the same whichever autopilot flies.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from chaser_bt.geo import LocalFrame
+from chaser_bt.radar.report import encode_scan
+from sitl.world.intruders import Intruder
+from sitl.world.radar.model import GroundRadar, ScanTruth
+from sitl.world.radar.udp import RadarUdpSender
+from sitl.world.scenario import Scenario
+
+__all__ = ["Surroundings"]
+
+
+class Surroundings:
+    """The scenario's intruders and ground radar, stepped with the vehicle.
+
+    Args:
+        scenario: the scenario, already placed for the run's seed (``Scenario.placed``).
+        seed: seeds the intruders' pilots and the radar's noise.
+    """
+
+    def __init__(self, scenario: Scenario, seed: int) -> None:
+        self.scenario = scenario
+        frame = LocalFrame(scenario.home)
+        self.intruders = [Intruder(spec, np.random.default_rng([seed, 0x1d7, k]), frame)
+                          for k, spec in enumerate(scenario.intruders)]
+        self.radar: GroundRadar | None = None
+        self.radar_truth: ScanTruth | None = None  # scoring only: the last scan's track -> object
+        self._radar_consumers: list[Callable[[bytes], None]] = []
+        self._next_scan_s = 0.0
+        if scenario.radar is not None:
+            self.radar = GroundRadar(scenario.radar, frame, np.random.default_rng([seed, 0x5ada7]))
+            if scenario.radar.udp_port is not None:
+                self._radar_consumers.append(RadarUdpSender(scenario.radar.udp_host, scenario.radar.udp_port))
+
+    def add_radar_consumer(self, consumer: Callable[[bytes], None]) -> None:
+        """Hand every radar datagram to ``consumer`` too (e.g. a ``QueueDatagramSource.push``)."""
+        self._radar_consumers.append(consumer)
+
+    def radar_objects(self, t: float, truth) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """What the radar can see at ``t``: the vehicle (``truth``) while airborne, the scripted targets present, the intruders."""
+        objs = {}
+        if not truth.on_ground:
+            objs["ownship"] = (np.asarray(truth.pos_enu, float), np.asarray(truth.vel_enu, float))
+        for tgt in self.scenario.targets:
+            if tgt.present(t) and tgt.radar_visible:
+                objs[tgt.name] = (tgt.path.position_enu(t), tgt.path.velocity_enu(t))
+        for intruder in self.intruders:
+            objs[intruder.name] = (intruder.pos.copy(), intruder.vel.copy())
+        return objs
+
+    def step(self, t: float, dt: float, truth: Callable[[], object]) -> None:
+        """The step of ``dt`` that ends at ``t``: the intruders fly, then the radar scans if one is due.
+
+        ``truth`` returns the vehicle's true state; it is asked only when the radar scans.
+        """
+        for intruder in self.intruders:
+            intruder.step(t, dt)
+        if self.radar is None or t < self._next_scan_s - 1e-9:
+            return
+        self._next_scan_s += self.radar.dt
+        out = self.radar.scan(round(t, 6), self.radar_objects(t, truth()))
+        if out is None:
+            return
+        scan, self.radar_truth = out
+        datagram = encode_scan(scan)
+        for consumer in self._radar_consumers:
+            consumer(datagram)
+
+    def intruder_telemetry(self, t: float) -> bytes:
+        """The intruders' own MAVLink due at ``t`` (each on its own radio), encoded, or ``b""``."""
+        if not self.intruders:
+            return b""
+        return b"".join(intruder.telemetry_bytes(round(t, 6)) for intruder in self.intruders)
