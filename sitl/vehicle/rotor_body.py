@@ -1,21 +1,38 @@
-"""A motor-level quadcopter ("+" frame) for ArduPilot's JSON physics backend: PWM in, IMU out.
+"""A motor-level multirotor for ArduPilot's JSON physics backend: PWM in, IMU out.
 
 Where :mod:`sitl.vehicle.physics` models what a flight controller's *outer* loops see (a lagged
-attitude), an autopilot flying its own attitude loops needs the rotors: each motor's thrust
-follows its PWM through a first-order spin-up lag and ArduPilot's thrust curve
-(``MOT_THST_EXPO``: thrust ~ (1 - e) u + e u²), the arms turn thrust differences into roll and
-pitch torques, the props' drag into a yaw torque, and a rigid body with a diagonal inertia
-integrates them. Linear drag, a flat ground at home (it stops the fall and holds the copter level
-while the thrust is below its weight), no wind yet.
+attitude), an autopilot flying its own attitude loops needs the rotors. Each motor's thrust follows
+its PWM through a first-order spin-up lag and ArduPilot's thrust curve; the arms turn thrust
+differences into roll and pitch torques, the props' drag into a yaw torque, and a rigid body with a
+diagonal inertia integrates them in air that moves at :attr:`RotorBody.wind_ned`. A flat ground at
+home stops the fall and holds the copter level while the thrust is below its weight.
 
-Motor order and spin are ArduPilot's QUAD "+" (``AP_MotorsMatrix``): 1 right and 2 left spin
-counter-clockwise, 3 front and 4 back clockwise. Frames are ArduPilot's: NED earth, FRD body.
+The motor matrices are ArduPilot's (``libraries/AP_Motors/AP_MotorsMatrix.cpp``,
+``setup_quad_matrix`` and ``setup_octa_matrix``): motor *i* sits at ``angle`` degrees clockwise
+from the nose and its roll, pitch and yaw factors are ``cos(angle + 90°)``, ``cos(angle)`` and +1
+for a counter-clockwise prop (``AP_MOTORS_MATRIX_YAW_FACTOR_CCW``), -1 for a clockwise one. Motor
+*i* receives servo channel *i* (stock SERVOn_FUNCTION = Motor n). A counter-clockwise prop drags
+the body clockwise seen from above: a positive yaw torque in FRD, as the yaw factor says.
+
+The thrust curve is the one ArduPilot's output stage inverts (``AP_Motors_Thrust_Linearization``):
+thrust ``T = T_max ((1 - e) x + e x²)`` with ``e = MOT_THST_EXPO`` and ``x`` the PWM's place
+between ``MOT_SPIN_MIN`` (no thrust yet) and ``MOT_SPIN_MAX`` (full thrust) of the PWM range. So
+the hover value ArduCopter learns, MOT_THST_HOVER, is the thrust fraction
+``m g / (n T_max)`` (:attr:`RotorParams.hover_thrust_fraction`), up to its battery-voltage and
+air-density compensation.
+
+Frames are ArduPilot's: NED earth, FRD body. The step runs on plain floats, with the attitude kept
+as a normalised quaternion: at 400 frames a second a JSON backend spends its time here, and scipy's
+``Rotation`` costs tens of microseconds a call. scipy appears only off the hot path
+(:attr:`RotorBody.attitude`).
 """
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, field
+from typing import Sequence
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -23,72 +40,382 @@ from scipy.spatial.transform import Rotation
 from sitl.vehicle.airframe import GRAVITY
 from sitl.vehicle.json_backend import SensorFrame, ServoPacket
 
-__all__ = ["QuadParams", "QuadRotorBody"]
+__all__ = ["AIRFRAMES", "FRAMES", "RotorBody", "RotorFrame", "RotorParams", "rotor_airframe", "rotor_frame"]
 
-# Quad "+": (forward, right) arm position in arm lengths, yaw factor (+1 counter-clockwise prop).
-_PLUS = ((0.0, 1.0, 1.0), (0.0, -1.0, 1.0), (1.0, 0.0, -1.0), (-1.0, 0.0, -1.0))
+log = logging.getLogger(__name__)
+
+_CW, _CCW = -1.0, 1.0  # AP_MOTORS_MATRIX_YAW_FACTOR_CW / _CCW
 
 
 @dataclass(frozen=True)
-class QuadParams:
-    """A 1.5 kg quad that hovers near 40 % throttle (ArduCopter's MOT_THST_HOVER learns it)."""
+class RotorFrame:
+    """One of ArduPilot's motor matrices: where each motor sits and which way its prop turns.
 
-    mass_kg: float = 1.5
-    arm_m: float = 0.25
-    inertia_kgm2: tuple[float, float, float] = (0.015, 0.015, 0.03)
-    max_thrust_n: float = 15.0  # per motor at full PWM
-    thrust_expo: float = 0.65  # MOT_THST_EXPO's default
-    yaw_torque_per_n: float = 0.02  # prop drag torque per newton of thrust (m)
+    Attributes:
+        name: ours, e.g. ``"octa-x"``.
+        frame_class: ArduPilot's FRAME_CLASS (1 quad, 3 octa).
+        frame_type: ArduPilot's FRAME_TYPE (0 plus, 1 X).
+        angles_deg: motor *i*'s arm, degrees clockwise from the nose (AP_MotorsMatrix's ``angle``).
+        yaw_factors: +1 counter-clockwise prop, -1 clockwise.
+    """
+
+    name: str
+    frame_class: int
+    frame_type: int
+    angles_deg: tuple[float, ...]
+    yaw_factors: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        if len(self.angles_deg) != len(self.yaw_factors) or not self.angles_deg:
+            raise ValueError(f"frame {self.name}: {len(self.angles_deg)} angles, {len(self.yaw_factors)} yaw factors")
+
+    @property
+    def motors(self) -> int:
+        return len(self.angles_deg)
+
+    @property
+    def roll_factors(self) -> tuple[float, ...]:
+        """ArduPilot's roll factor ``cos(angle + 90°)``: -1 for a motor on the right arm."""
+        return tuple(math.cos(math.radians(a + 90.0)) for a in self.angles_deg)
+
+    @property
+    def pitch_factors(self) -> tuple[float, ...]:
+        """ArduPilot's pitch factor ``cos(angle)``: +1 for a motor on the nose."""
+        return tuple(math.cos(math.radians(a)) for a in self.angles_deg)
+
+
+FRAMES: dict[str, RotorFrame] = {f.name: f for f in (
+    RotorFrame("quad-plus", 1, 0, (90.0, -90.0, 0.0, 180.0), (_CCW, _CCW, _CW, _CW)),
+    RotorFrame("quad-x", 1, 1, (45.0, -135.0, -45.0, 135.0), (_CCW, _CCW, _CW, _CW)),
+    RotorFrame("octa-plus", 3, 0, (0.0, 180.0, 45.0, 135.0, -45.0, -135.0, -90.0, 90.0),
+               (_CW, _CW, _CCW, _CCW, _CCW, _CCW, _CW, _CW)),
+    RotorFrame("octa-x", 3, 1, (22.5, -157.5, 67.5, 157.5, -22.5, -112.5, -67.5, 112.5),
+               (_CW, _CW, _CCW, _CCW, _CCW, _CCW, _CW, _CW)),
+)}
+
+
+def rotor_frame(name: str) -> RotorFrame:
+    """The motor matrix called ``name`` (``quad-plus``, ``quad-x``, ``octa-plus``, ``octa-x``)."""
+    try:
+        return FRAMES[name]
+    except KeyError:
+        raise KeyError(f"no rotor frame {name!r}; known: {', '.join(FRAMES)}") from None
+
+
+@dataclass(frozen=True)
+class RotorParams:
+    """A multirotor's physical constants (SI) and the ArduPilot parameters that fly it.
+
+    Attributes:
+        name: what :func:`rotor_airframe` calls it.
+        frame: its motor matrix.
+        mass_kg: take-off mass.
+        arm_m: centre to each motor's axis (half the diagonal wheelbase).
+        inertia_kgm2: principal moments about the FRD axes.
+        max_thrust_n: one motor's static thrust at full throttle.
+        thrust_expo: the curve's bend (ArduPilot's MOT_THST_EXPO).
+        spin_min, spin_max: where thrust starts and saturates, as fractions of the PWM range
+            (ArduPilot's MOT_SPIN_MIN, MOT_SPIN_MAX).
+        yaw_torque_per_n: a prop's drag torque per newton of its thrust (m).
+        motor_tau_s: time constant of a motor's thrust following its PWM (spin-up).
+        pwm_min_us, pwm_max_us: the ESC's PWM range (ArduCopter takes RC3_MIN/RC3_MAX).
+        drag_lin, drag_quad: drag force ``(lin + quad |v_air|) v_air`` (N per m/s, N per (m/s)²).
+        angular_damping: aerodynamic torque per rad/s of body rate (N m s).
+        crash_speed_mps: touching the ground faster than this is a crash (as
+            :class:`~sitl.vehicle.airframe.AirframeParams`).
+        ardupilot_tuning: parameters beyond the frame and hover guess that it needs on stock
+            tuning, as (name, value) pairs.
+    """
+
+    name: str
+    frame: RotorFrame
+    mass_kg: float
+    arm_m: float
+    inertia_kgm2: tuple[float, float, float]
+    max_thrust_n: float
+    thrust_expo: float = 0.65
+    spin_min: float = 0.15
+    spin_max: float = 0.95
+    yaw_torque_per_n: float = 0.02
     motor_tau_s: float = 0.02
-    pwm_min: int = 1000
-    pwm_max: int = 2000
-    drag_per_mps: float = 0.25  # N per m/s, linear
-    angular_damping: float = 0.02  # N m per rad/s
+    pwm_min_us: float = 1000.0
+    pwm_max_us: float = 2000.0
+    drag_lin: float = 0.25
+    drag_quad: float = 0.0
+    angular_damping: float = 0.02
+    crash_speed_mps: float = 3.0
+    ardupilot_tuning: tuple[tuple[str, float], ...] = ()
+
+    def __post_init__(self) -> None:
+        for name in ("mass_kg", "arm_m", "max_thrust_n", "motor_tau_s", "crash_speed_mps"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"{self.name}: {name} must be > 0, got {getattr(self, name)}")
+        if not all(i > 0.0 for i in self.inertia_kgm2) or len(self.inertia_kgm2) != 3:
+            raise ValueError(f"{self.name}: inertia_kgm2 must be three positive moments, got {self.inertia_kgm2}")
+        if not 0.0 <= self.spin_min < self.spin_max <= 1.0:
+            raise ValueError(f"{self.name}: need 0 <= spin_min < spin_max <= 1, got {self.spin_min}, {self.spin_max}")
+        if not 0.0 <= self.thrust_expo <= 1.0:
+            raise ValueError(f"{self.name}: thrust_expo must be in [0, 1], got {self.thrust_expo}")
+        if not self.hover_thrust_fraction < 1.0:
+            raise ValueError(f"{self.name}: {self.frame.motors} x {self.max_thrust_n} N cannot lift {self.mass_kg} kg")
+
+    @property
+    def hover_thrust_fraction(self) -> float:
+        """Each motor's share of its full thrust in hover: what MOT_THST_HOVER learns."""
+        return self.mass_kg * GRAVITY / (self.frame.motors * self.max_thrust_n)
+
+    @property
+    def hover_throttle(self) -> float:
+        """The PWM, as a fraction of its range, that hovers (the thrust curve solved, then spin range)."""
+        e, f = self.thrust_expo, self.hover_thrust_fraction
+        x = f if e == 0.0 else (-(1.0 - e) + math.sqrt((1.0 - e) ** 2 + 4.0 * e * f)) / (2.0 * e)
+        return self.spin_min + (self.spin_max - self.spin_min) * x
+
+    @property
+    def hover_pwm_us(self) -> float:
+        return self.pwm_min_us + (self.pwm_max_us - self.pwm_min_us) * self.hover_throttle
+
+    def ardupilot_params(self) -> dict[str, float]:
+        """What to write to ArduCopter's defaults file for this airframe: frame, thrust curve, hover guess, tuning."""
+        params: dict[str, float] = {
+            "FRAME_CLASS": self.frame.frame_class, "FRAME_TYPE": self.frame.frame_type,
+            "MOT_THST_EXPO": self.thrust_expo, "MOT_SPIN_MIN": self.spin_min, "MOT_SPIN_MAX": self.spin_max,
+            "MOT_THST_HOVER": round(self.hover_thrust_fraction, 3),
+        }
+        params.update(self.ardupilot_tuning)
+        return params
 
 
-@dataclass
-class QuadRotorBody:
-    """The state and its step; ``physics(packet, t)`` is the :class:`~sitl.vehicle.json_backend.JsonPhysicsServer` callable."""
+# The existing 1.5 kg quad "+": 4 x 15 N, hover at a quarter of full thrust.
+QUAD = RotorParams(name="quad", frame=FRAMES["quad-plus"], mass_kg=1.5, arm_m=0.25,
+                   inertia_kgm2=(0.015, 0.015, 0.03), max_thrust_n=15.0)
 
-    params: QuadParams = field(default_factory=QuadParams)
-    position_ned: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    velocity_ned: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    attitude: Rotation = field(default_factory=Rotation.identity)  # FRD body -> NED
-    rates_frd: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    thrust_n: np.ndarray = field(default_factory=lambda: np.zeros(4))
+# DJI S1000, the paper's aircraft: an octocopter, arms 45° apart with the nose between two of them
+# (ArduPilot's octa X), 1045 mm diagonal wheelbase, 15 x 5.2 in props on 4114 400 KV motors, 6S.
+# 7.5 kg take-off: the 4.4 kg airframe (S1000 4.2 kg + flight controller), a 6S 10 Ah pack
+# (1.3 kg) and a 1.8 kg camera, gimbal and companion computer: mid-way in DJI's 6-11 kg range.
+# 22 N (2.2 kgf) a motor at full throttle gives a thrust-to-weight of 2.4 and a hover at 42 % of
+# full thrust. Inertia from 8 x 0.2 kg (motor, prop, mount) at the arm's end, 8 x 0.1 kg of arm
+# and ESC at 0.3 m, a 1.5 kg gimbal 0.2 m below the centre, a 3 kg centre: about 0.35 kg m² in roll
+# and pitch, 0.6 in yaw. A 15-inch prop spins up more slowly than the quad's (60 ms) and drags a
+# torque of about 0.024 m per newton (C_Q / C_T ~ 0.064 D). Drag as the built-in simulator's S1000.
+# Stock rate gains fly it (their output is normalised by the motors' authority): the slow test
+# in tests/sitl/vehicle/test_json_backend.py holds 10 m within 1 m on them.
+S1000 = RotorParams(name="s1000", frame=FRAMES["octa-x"], mass_kg=7.5, arm_m=0.5225,
+                    inertia_kgm2=(0.35, 0.35, 0.60), max_thrust_n=22.0, yaw_torque_per_n=0.024,
+                    motor_tau_s=0.06, drag_lin=0.3, drag_quad=0.12, angular_damping=0.05)
 
+AIRFRAMES: dict[str, RotorParams] = {p.name: p for p in (QUAD, S1000)}
+
+
+def rotor_airframe(name: str) -> RotorParams:
+    """The airframe called ``name`` (``quad``, ``s1000``)."""
+    try:
+        return AIRFRAMES[name]
+    except KeyError:
+        raise KeyError(f"no rotor airframe {name!r}; known: {', '.join(AIRFRAMES)}") from None
+
+
+def _triple(v: Sequence[float], what: str) -> tuple[float, float, float]:
+    a = tuple(float(x) for x in v)
+    if len(a) != 3:
+        raise ValueError(f"{what}: expected 3 values, got {len(a)}")
+    return a  # type: ignore[return-value]
+
+
+def _readonly(values: Sequence[float]) -> np.ndarray:
+    a = np.array(values, dtype=float)
+    a.flags.writeable = False  # a copy: writing into it would change nothing, so it may not
+    return a
+
+
+class RotorBody:
+    """A multirotor's state and its step; :meth:`physics` is the :class:`~sitl.vehicle.json_backend.JsonPhysicsServer` callable.
+
+    The truth a scorer reads (``position_ned``, ``velocity_ned``, ``rates_frd``, ``thrust_n``,
+    ``wind_ned``) comes as read-only arrays; assign a whole new value to change one.
+
+    Args:
+        params: the airframe (default the 1.5 kg quad); :meth:`named` picks one by name.
+        position_ned: metres from home; on the ground when ``position_ned[2] >= 0``.
+        velocity_ned: m/s.
+        attitude: FRD body -> NED (default level, nose north).
+        rates_frd: body rates, rad/s.
+        wind_ned: the air's velocity, m/s.
+    """
+
+    def __init__(self, params: RotorParams = QUAD, *, position_ned: Sequence[float] = (0.0, 0.0, 0.0),
+                 velocity_ned: Sequence[float] = (0.0, 0.0, 0.0), attitude: Rotation | None = None,
+                 rates_frd: Sequence[float] = (0.0, 0.0, 0.0), wind_ned: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
+        self.params = params
+        self.position_ned = position_ned
+        self.velocity_ned = velocity_ned
+        self.rates_frd = rates_frd
+        self.wind_ned = wind_ned
+        self.attitude = attitude if attitude is not None else Rotation.identity()
+        self._thrust = [0.0] * params.frame.motors
+        self.on_ground = self._pz >= 0.0
+        self.crashed = False
+        self._dt = -1.0
+        self._motor_keep = 0.0
+        p, f = params, params.frame
+        # Per motor: arm's forward and right reach (m), yaw torque per newton (m).
+        self._motors = tuple((p.arm_m * math.cos(math.radians(a)), p.arm_m * math.sin(math.radians(a)),
+                              y * p.yaw_torque_per_n) for a, y in zip(f.angles_deg, f.yaw_factors))
+        span = (p.pwm_max_us - p.pwm_min_us) * (p.spin_max - p.spin_min)
+        self._pwm_zero = p.pwm_min_us + (p.pwm_max_us - p.pwm_min_us) * p.spin_min  # PWM of no thrust
+        self._pwm_scale = 1.0 / span
+
+    @classmethod
+    def named(cls, airframe: str, **state) -> RotorBody:
+        """A body of the airframe called ``airframe`` (``quad``, ``s1000``); ``state`` as the constructor's."""
+        return cls(rotor_airframe(airframe), **state)
+
+    # -- state, as arrays for the scorer ------------------------------------------------------
+    @property
+    def position_ned(self) -> np.ndarray:
+        return _readonly((self._px, self._py, self._pz))
+
+    @position_ned.setter
+    def position_ned(self, v: Sequence[float]) -> None:
+        self._px, self._py, self._pz = _triple(v, "position_ned")
+
+    @property
+    def velocity_ned(self) -> np.ndarray:
+        return _readonly((self._vx, self._vy, self._vz))
+
+    @velocity_ned.setter
+    def velocity_ned(self, v: Sequence[float]) -> None:
+        self._vx, self._vy, self._vz = _triple(v, "velocity_ned")
+
+    @property
+    def rates_frd(self) -> np.ndarray:
+        return _readonly((self._wp, self._wq, self._wr))
+
+    @rates_frd.setter
+    def rates_frd(self, v: Sequence[float]) -> None:
+        self._wp, self._wq, self._wr = _triple(v, "rates_frd")
+
+    @property
+    def wind_ned(self) -> np.ndarray:
+        """The air's velocity (m/s, NED); drag acts on the velocity relative to it."""
+        return _readonly(self._wind)
+
+    @wind_ned.setter
+    def wind_ned(self, v: Sequence[float]) -> None:
+        self._wind = _triple(v, "wind_ned")
+
+    @property
+    def thrust_n(self) -> np.ndarray:
+        """Each motor's thrust now (N), in motor order."""
+        return _readonly(self._thrust)
+
+    @property
+    def attitude(self) -> Rotation:
+        """FRD body -> NED, as a scipy Rotation (built on each call: not for the hot path)."""
+        return Rotation.from_quat((self._qx, self._qy, self._qz, self._qw))
+
+    @attitude.setter
+    def attitude(self, r: Rotation) -> None:
+        self._qx, self._qy, self._qz, self._qw = (float(c) for c in r.as_quat())
+
+    def euler_ned(self) -> tuple[float, float, float]:
+        """Roll, pitch, yaw (rad) of the FRD body in NED (ZYX order, yaw in (-pi, pi])."""
+        w, x, y, z = self._qw, self._qx, self._qy, self._qz
+        roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+        pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
+        yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+        return roll, pitch, yaw
+
+    # -- the step -----------------------------------------------------------------------------
     def physics(self, packet: ServoPacket, t_s: float) -> SensorFrame:
-        """Step by ``packet.dt_s`` under its first four PWMs; what the IMU and GPS feel after it."""
-        specific_force = self.step(packet.pwm_us[:4], packet.dt_s)
-        roll, pitch, yaw = self.attitude.as_euler("ZYX")[::-1]
-        return SensorFrame(t_s, tuple(self.rates_frd), tuple(specific_force), tuple(self.position_ned),
-                           tuple(self.velocity_ned), (float(roll), float(pitch), float(yaw)))
+        """Step by ``packet.dt_s`` under its first PWMs (one a motor); what the IMU and GPS feel after it."""
+        fx, fy, fz = self._step(packet.pwm_us, packet.dt_s)
+        return SensorFrame(t_s, (self._wp, self._wq, self._wr), (fx, fy, fz), (self._px, self._py, self._pz),
+                           (self._vx, self._vy, self._vz), self.euler_ned())
 
-    def step(self, pwm_us, dt: float) -> np.ndarray:
-        """Advance by ``dt``; returns the specific force in FRD (what the accelerometer reads)."""
+    def step(self, pwm_us: Sequence[float], dt: float) -> np.ndarray:
+        """Advance by ``dt`` with motor *i* on ``pwm_us[i]``; returns the specific force in FRD (what the accelerometer reads)."""
+        if len(pwm_us) < len(self._motors):
+            raise ValueError(f"{self.params.name}: {len(self._motors)} motors, {len(pwm_us)} PWMs")
+        return np.array(self._step(pwm_us, dt))
+
+    def _step(self, pwm_us: Sequence[float], dt: float) -> tuple[float, float, float]:
         p = self.params
-        u = np.clip((np.asarray(pwm_us, float) - p.pwm_min) / (p.pwm_max - p.pwm_min), 0.0, 1.0)
-        target = p.max_thrust_n * ((1.0 - p.thrust_expo) * u + p.thrust_expo * u * u)
-        self.thrust_n = target + (self.thrust_n - target) * math.exp(-dt / p.motor_tau_s)
-        torque = np.zeros(3)
-        for (fwd, right, spin), thrust in zip(_PLUS, self.thrust_n):
-            torque += (-right * p.arm_m * thrust, fwd * p.arm_m * thrust, spin * p.yaw_torque_per_n * thrust)
-        inertia = np.asarray(p.inertia_kgm2)
-        w = self.rates_frd
-        w_dot = (torque - p.angular_damping * w - np.cross(w, inertia * w)) / inertia
-        force_body = np.array([0.0, 0.0, -float(self.thrust_n.sum())])
-        force_ned = self.attitude.apply(force_body) - p.drag_per_mps * self.velocity_ned
-        accel_ned = force_ned / p.mass_kg + (0.0, 0.0, GRAVITY)
-        on_ground = self.position_ned[2] >= 0.0 and accel_ned[2] >= 0.0
-        if on_ground:  # the ground holds it level and still until the rotors lift it
-            yaw = self.attitude.as_euler("ZYX")[0]
-            self.attitude = Rotation.from_euler("ZYX", (yaw, 0.0, 0.0))
-            self.rates_frd = np.zeros(3)
-            self.velocity_ned = np.zeros(3)
-            self.position_ned[2] = 0.0
-            return np.array([0.0, 0.0, -GRAVITY])
-        self.rates_frd = w + w_dot * dt
-        self.attitude = self.attitude * Rotation.from_rotvec(self.rates_frd * dt)
-        self.velocity_ned = self.velocity_ned + accel_ned * dt
-        self.position_ned = self.position_ned + self.velocity_ned * dt
-        return self.attitude.inv().apply(force_ned / p.mass_kg)
+        if dt != self._dt:
+            self._dt = dt
+            self._motor_keep = math.exp(-dt / p.motor_tau_s)
+        keep, e = self._motor_keep, p.thrust_expo
+        zero, scale, t_max = self._pwm_zero, self._pwm_scale, p.max_thrust_n
+        thrust = self._thrust
+        total = tau_x = tau_y = tau_z = 0.0
+        for i, ((fwd, right, yaw_k), pwm) in enumerate(zip(self._motors, pwm_us)):
+            x = (pwm - zero) * scale
+            x = 0.0 if x < 0.0 else 1.0 if x > 1.0 else x
+            target = t_max * x * (1.0 - e + e * x)
+            t = target + (thrust[i] - target) * keep
+            thrust[i] = t
+            total += t
+            tau_x -= right * t  # thrust is along -z: r x F = (-right T, fwd T, 0)
+            tau_y += fwd * t
+            tau_z += yaw_k * t
+        w, qx, qy, qz = self._qw, self._qx, self._qy, self._qz
+        # Body -> NED rotation's columns as needed: thrust along body -z, drag back into the body.
+        r00 = 1.0 - 2.0 * (qy * qy + qz * qz); r01 = 2.0 * (qx * qy - w * qz); r02 = 2.0 * (qx * qz + w * qy)  # noqa: E702
+        r10 = 2.0 * (qx * qy + w * qz); r11 = 1.0 - 2.0 * (qx * qx + qz * qz); r12 = 2.0 * (qy * qz - w * qx)  # noqa: E702
+        r20 = 2.0 * (qx * qz - w * qy); r21 = 2.0 * (qy * qz + w * qx); r22 = 1.0 - 2.0 * (qx * qx + qy * qy)  # noqa: E702
+        m = p.mass_kg
+        ax, ay, az = self._wind
+        rx, ry, rz = self._vx - ax, self._vy - ay, self._vz - az
+        k_drag = (p.drag_lin + p.drag_quad * math.sqrt(rx * rx + ry * ry + rz * rz)) / m
+        dx, dy, dz = -k_drag * rx, -k_drag * ry, -k_drag * rz  # drag's acceleration, NED
+        t_m = total / m
+        acc_n = dx - t_m * r02
+        acc_e = dy - t_m * r12
+        acc_d = dz - t_m * r22 + GRAVITY
+        if self.on_ground:
+            if acc_d >= 0.0:  # the ground holds it level and still until the rotors lift it
+                self._rest()
+                return 0.0, 0.0, -GRAVITY
+            self.on_ground = False
+        # Rigid body: Euler's equations with a diagonal inertia, then rates, attitude, velocity, position.
+        ix, iy, iz = p.inertia_kgm2
+        c = p.angular_damping
+        wp, wq, wr = self._wp, self._wq, self._wr
+        wp += (tau_x - c * wp - (iz - iy) * wq * wr) / ix * dt
+        wq += (tau_y - c * wq - (ix - iz) * wr * wp) / iy * dt
+        wr += (tau_z - c * wr - (iy - ix) * wp * wq) / iz * dt
+        self._wp, self._wq, self._wr = wp, wq, wr
+        rate = math.sqrt(wp * wp + wq * wq + wr * wr)
+        if rate > 0.0:  # q <- q * exp(omega dt / 2), then renormalised
+            half = 0.5 * rate * dt
+            s = math.sin(half) / rate
+            bw, bx, by, bz = math.cos(half), wp * s, wq * s, wr * s
+            w, qx, qy, qz = (w * bw - qx * bx - qy * by - qz * bz, w * bx + qx * bw + qy * bz - qz * by,
+                             w * by - qx * bz + qy * bw + qz * bx, w * bz + qx * by - qy * bx + qz * bw)
+            n = 1.0 / math.sqrt(w * w + qx * qx + qy * qy + qz * qz)
+            self._qw, self._qx, self._qy, self._qz = w * n, qx * n, qy * n, qz * n
+        self._vx += acc_n * dt
+        self._vy += acc_e * dt
+        self._vz += acc_d * dt
+        self._px += self._vx * dt
+        self._py += self._vy * dt
+        self._pz += self._vz * dt
+        if self._pz >= 0.0:  # touchdown
+            if self._vz > p.crash_speed_mps:
+                self.crashed = True
+                log.info("%s crashed: touched down at %.1f m/s (crash speed %.1f)", p.name, self._vz,
+                         p.crash_speed_mps)
+            self.on_ground = True
+            self._rest()
+            return 0.0, 0.0, -GRAVITY
+        # Specific force in FRD: thrust along -z plus the drag turned into the body (R transposed).
+        return (r00 * dx + r10 * dy + r20 * dz, r01 * dx + r11 * dy + r21 * dz, r02 * dx + r12 * dy + r22 * dz - t_m)
+
+    def _rest(self) -> None:
+        """Level on the ground at its heading, still."""
+        yaw = self.euler_ned()[2]
+        self._qw, self._qx, self._qy, self._qz = math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0)
+        self._wp = self._wq = self._wr = 0.0
+        self._vx = self._vy = self._vz = 0.0
+        self._pz = 0.0
