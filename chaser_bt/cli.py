@@ -162,6 +162,7 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                    help="write the report there too: report.json, report.md, the trace and the paper's figures (default: none)")
     p.add_argument("--progress", choices=("auto", "always", "never"), default="auto",
                    help="a progress bar on stderr: simulated time, phase, real-time factor (default auto: on a terminal)")
+    arg.add_autopilot_arguments(p)
     add_recording_arguments(p)
     add_groot2_arguments(p)
 
@@ -328,7 +329,9 @@ def _fly(args: argparse.Namespace, tree, monitor) -> int:
 def _rehearse(args: argparse.Namespace) -> int:
     tree = _load_tree(args.tree)
     scenario = _load_scenario(args.scenario)
-    from sitl.bench.rehearsal import RehearsalInterrupted, rehearse
+    from sitl.ardupilot.process import ArduPilotMissing
+    from sitl.ardupilot.simulator import ArduPilotStopped
+    from sitl.bench.rehearsal import AutopilotChoice, RehearsalInterrupted, rehearse
     from sitl.bench.sensors import SensorOptions
 
     on_tick = _tick_printer(tree, sys.stderr if args.json else sys.stdout) if args.show_ticks else None
@@ -345,9 +348,12 @@ def _rehearse(args: argparse.Namespace) -> int:
     try:
         report = rehearse(tree, scenario, args.seed, rate_hz=args.rate_hz, on_tick=on_tick, sensors=sensors,
                           on_start=start_hook(monitor, hook), trace=args.trace is not None or args.report is not None,
-                          progress=bar)
+                          progress=bar, autopilot=AutopilotChoice(args.autopilot, args.airframe, args.ardupilot))
     except RehearsalInterrupted as stop:  # Ctrl-C or SIGTERM: the partial report, then exit 130
         report, interrupted = stop.report, True
+    except (ArduPilotMissing, ArduPilotStopped) as exc:  # no autopilot to fly: nothing was flown
+        print(f"chaser-bt: rehearse: {exc}", file=sys.stderr)
+        return EXIT_FAILED
     finally:
         if bar is not None:
             bar.close()

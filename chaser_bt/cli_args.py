@@ -19,6 +19,7 @@ from typing import Callable, Iterable, NoReturn
 __all__ = [
     "PROG", "ChaserParser", "did_you_mean", "seed", "positive_float", "non_negative_float", "positive_int",
     "non_negative_int", "port", "listen_port", "geodetic_point", "input_file", "output_file", "output_dir", "add_verbose_everywhere",
+    "AUTOPILOTS", "add_autopilot_arguments",
 ]
 
 PROG = "chaser-bt"
@@ -159,3 +160,19 @@ def add_verbose_everywhere(subparsers: argparse._SubParsersAction) -> None:
         if "-v" not in parser._option_string_actions:
             parser.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS,
                                 help="more logging (-vv for debug); also accepted before the subcommand")
+
+
+AUTOPILOTS = ("builtin", "ardupilot")
+AIRFRAMES = ("s1000", "quad")  # sitl.vehicle.rotor_body.AIRFRAMES (the CLI does not import the simulator)
+
+
+def add_autopilot_arguments(p: argparse.ArgumentParser) -> None:
+    """``--autopilot``, ``--airframe`` and ``--ardupilot``: who flies a rehearsal (rehearse and campaign)."""
+    p.add_argument("--autopilot", choices=AUTOPILOTS, default="builtin",
+                   help="who flies: the built-in simulator (default, fast) or ArduPilot's ArduCopter SITL inside the same "
+                        "world (docs/ardupilot.md)")
+    p.add_argument("--airframe", choices=AIRFRAMES, default="s1000",
+                   help="the rotor body ArduCopter flies with --autopilot ardupilot (default s1000, the paper's octocopter)")
+    p.add_argument("--ardupilot", type=Path, metavar="DIR",
+                   help="folder holding ArduPilot's arducopter and copter.parm (default $CHASER_BT_ARDUPILOT, then "
+                        "../shared/ardupilot beside the repository)")

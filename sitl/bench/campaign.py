@@ -41,7 +41,7 @@ from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
-from chaser_bt.cli_args import output_dir, positive_int
+from chaser_bt.cli_args import add_autopilot_arguments, output_dir, positive_int
 from chaser_bt.log.trace import FlightTrace
 
 __all__ = [
@@ -148,7 +148,10 @@ class RunSpec:
     seed: int
     camera: bool = True
     quick: bool = False
-    fingerprint: str = ""  # contents of the tree, its includes and the scenario: a stored result counts only if it matches
+    fingerprint: str = ""
+    autopilot: str = "builtin"  # who flies (sitl.bench.rehearsal.AutopilotChoice)
+    airframe: str = "s1000"
+    ardupilot: str | None = None  # contents of the tree, its includes and the scenario: a stored result counts only if it matches
 
     @property
     def scenario_stem(self) -> str:
@@ -201,14 +204,20 @@ class CampaignConfig:
     fresh: bool = False  # ignore stored results and fly every run again
     report_only: bool = False  # fly nothing: report the runs stored so far
     success: SuccessRule = field(default_factory=SuccessRule)
+    autopilot: str = "builtin"  # who flies: "builtin" or "ardupilot" (on ``airframe``, binary in ``ardupilot``)
+    airframe: str = "s1000"
+    ardupilot: Path | None = None
 
     def specs(self) -> list[RunSpec]:
         from chaser_bt.tree.documents import tree_files
 
         tree_digest = _digest(*tree_files(self.tree))  # the tree and every file it includes
+        flown_by = "" if self.autopilot == "builtin" else f"-{self.autopilot}-{self.airframe}"
+        folder = None if self.ardupilot is None else str(self.ardupilot)
         return [
             RunSpec(str(self.tree.resolve()), str(sc.resolve()), seed, self.camera, self.quick,
-                    f"{tree_digest}-{_digest(sc)}-{'cam' if self.camera else 'nocam'}{'-quick' if self.quick else ''}")
+                    f"{tree_digest}-{_digest(sc)}-{'cam' if self.camera else 'nocam'}{'-quick' if self.quick else ''}{flown_by}",
+                    self.autopilot, self.airframe, folder)
             for sc in self.scenarios for seed in self.seeds
         ]
 
@@ -281,6 +290,10 @@ def _rehearse_kwargs(rehearse: Callable, spec: RunSpec) -> dict:
         )
 
         kwargs["sensors"] = sensors_mod.SensorOptions(camera=False)
+    if spec.autopilot != "builtin":
+        from sitl.bench.rehearsal import AutopilotChoice
+
+        kwargs["autopilot"] = AutopilotChoice(spec.autopilot, spec.airframe, spec.ardupilot)
     return kwargs
 
 
@@ -780,6 +793,7 @@ def add_command(subparsers) -> None:
                    help="success needs the target in the FOV this long after acquisition (default %(default)s)")
     p.add_argument("--min-success", type=float, default=0.0, metavar="FRAC",
                    help="exit 1 when the success rate is below FRAC (default 0: any finished campaign exits 0)")
+    add_autopilot_arguments(p)
     p.set_defaults(handler=_campaign_command)
 
 
@@ -790,6 +804,7 @@ def _campaign_command(args: argparse.Namespace) -> int:
             workers=args.workers, ray_address=args.ray, camera=not args.no_camera, quick=args.quick, fresh=args.fresh,
             report_only=args.report_only,
             success=SuccessRule(min_followed_s=args.min_followed_s),
+            autopilot=args.autopilot, airframe=args.airframe, ardupilot=args.ardupilot,
         )
         if args.min_followed_s < 0:
             raise CampaignError(f"--min-followed-s {args.min_followed_s}: must be >= 0")

@@ -7,21 +7,54 @@ lock-step in one thread on simulated time.
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import Any, Callable
 
 import py_trees
 
 from chaser_bt.clock import FunctionClock
 from chaser_bt.mission.runner import MissionRunner
+from chaser_bt.target_telemetry import TargetTelemetry
 from chaser_bt.vehicle import LinkConfig, VehicleLink
 from chaser_bt.vehicle.pipe import byte_pipe
 from sitl.simulator import Simulator
 from sitl.world.scenario import Scenario
 
-__all__ = ["InProcessVehicle"]
+__all__ = ["InProcessVehicle", "LockStepVehicle"]
 
 
-class InProcessVehicle:
+class LockStepVehicle:
+    """What a rehearsal flies: ``sim`` (world clock ``sim.time_s``, truth), ``link``, ``clock`` and ``step()``."""
+
+    sim: Any
+    link: VehicleLink
+    clock: FunctionClock
+
+    def step(self) -> None:
+        raise NotImplementedError
+
+    def run_until(self, predicate: Callable[[], bool], timeout_s: float) -> bool:
+        """Step until ``predicate()`` holds (True) or ``timeout_s`` of sim time pass (False)."""
+        deadline = self.sim.time_s + timeout_s
+        while not predicate():
+            if self.sim.time_s >= deadline:
+                return False
+            self.step()
+        return True
+
+    def fly(self, runner: MissionRunner, timeout_s: float) -> py_trees.common.Status:
+        """Tick ``runner`` lock-step until its root finishes or ``timeout_s`` pass; its last status."""
+        self.run_until(lambda: runner.tick_if_due() and runner.finished, timeout_s)
+        return runner.status
+
+    def attach_target_telemetry(self) -> TargetTelemetry:
+        """The intruders' own telemetry as the mission would receive it (on the vehicle's link here)."""
+        return TargetTelemetry.attach(self.link, self.clock.now)
+
+    def close(self) -> None:
+        """Release what the vehicle holds (nothing in process)."""
+
+
+class InProcessVehicle(LockStepVehicle):
     """The simulator and a :class:`VehicleLink` joined by an in-memory MAVLink pipe, run lock-step.
 
     ``step()`` advances physics by one step and lets the link read what arrived. The link's timers
@@ -50,20 +83,6 @@ class InProcessVehicle:
     def step(self) -> None:
         self.sim.step()
         self.link.poll()
-
-    def run_until(self, predicate: Callable[[], bool], timeout_s: float) -> bool:
-        """Step until ``predicate()`` holds (True) or ``timeout_s`` of sim time pass (False)."""
-        deadline = self.sim.time_s + timeout_s
-        while not predicate():
-            if self.sim.time_s >= deadline:
-                return False
-            self.step()
-        return True
-
-    def fly(self, runner: MissionRunner, timeout_s: float) -> py_trees.common.Status:
-        """Tick ``runner`` lock-step until its root finishes or ``timeout_s`` pass; its last status."""
-        self.run_until(lambda: runner.tick_if_due() and runner.finished, timeout_s)
-        return runner.status
 
 
 class _TappedEnd:

@@ -63,7 +63,7 @@ class RehearsalReport:
     landed_dist_m: float | None  # horizontal distance from home at the last touchdown
     max_alt_m: float  # highest point above home (truth)
     distance_flown_m: float  # horizontal path length (truth)
-    battery_used_pct: float
+    battery_used_pct: float | None  # None: the autopilot did not report its battery
     message: str  # why it ended: the last running leaf's feedback, or the error
     t_airborne_s: float | None = None  # radar validation -> take-off altitude (paper 15.48 s)
     t_acquire_s: float | None = None  # take-off altitude -> first vision acquisition (paper 4.95 s)
@@ -140,6 +140,7 @@ def rehearse(
     on_start: Callable[[MissionRunner, InProcessVehicle, dict], None] | None = None,
     trace: bool = False,
     progress: Callable[[float, str | None], None] | None = None,
+    autopilot: AutopilotChoice | None = None,
 ) -> RehearsalReport:
     """Fly ``tree`` against a fresh simulator built from ``scenario`` with ``seed``; score it.
 
@@ -149,6 +150,8 @@ def rehearse(
     scenario provides). ``on_start(runner, vehicle, resources)`` runs after the tree's setup, before
     the first tick (a recorder's hook). ``trace`` fills ``report.trace`` (:class:`FlightTrace`).
     ``progress(sim_time_s, phase)`` is called after every tick (:class:`~sitl.bench.rehearsal_progress.RehearsalProgress`).
+    ``autopilot`` chooses who flies: the built-in simulator (default) or ArduPilot's ArduCopter SITL
+    inside the same world (:class:`AutopilotChoice`, :mod:`sitl.bench.ardupilot_vehicle`).
 
     Raises:
         RehearsalInterrupted: on Ctrl-C, carrying the report of the flight so far (outcome ``interrupted``).
@@ -159,11 +162,15 @@ def rehearse(
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
 
-    vehicle = InProcessVehicle(scenario, seed, link_config, ground_tap)
+    vehicle = _vehicle(scenario, seed, link_config, ground_tap, autopilot or AutopilotChoice())
     sim = vehicle.sim
     sensors_start = time.perf_counter()
     options = sensors or SensorOptions()
-    mission_sensors = build_sensors(vehicle, options, seed)
+    try:
+        mission_sensors = build_sensors(vehicle, options, seed)
+    except BaseException:
+        vehicle.close()
+        raise
     sensors_wall = time.perf_counter() - sensors_start
     runner = MissionRunner(tree, vehicle.link, vehicle.clock, rate_hz=rate_hz, resources=mission_sensors.resources)
     if on_tick is not None:
@@ -216,6 +223,7 @@ def rehearse(
         outcome, message = "error", f"{type(exc).__name__}: {exc}"
     finally:
         mission_sensors.close()
+        vehicle.close()
     wall = time.perf_counter() - wall_start
 
     ticks_ms = runner.tick_wall_ms
@@ -234,7 +242,7 @@ def rehearse(
         landed_dist_m=None if scorer.landed_dist_m is None else round(scorer.landed_dist_m, 2),
         max_alt_m=round(scorer.max_alt_m, 2),
         distance_flown_m=round(scorer.distance_m, 1),
-        battery_used_pct=round(battery_start - sim.autopilot.battery().remaining_pct, 2),
+        battery_used_pct=_battery_used(battery_start, sim.autopilot.battery().remaining_pct),
         message=message,
         **observer.scores().report_keys(),
         **sar.report_keys(),
@@ -254,6 +262,40 @@ def rehearse(
     if interrupted:
         raise RehearsalInterrupted(report)
     return report
+
+
+@dataclass(frozen=True)
+class AutopilotChoice:
+    """Who flies a rehearsal: ``"builtin"`` (the built-in simulator) or ``"ardupilot"`` (ArduCopter SITL
+    in our world, on the rotor body ``airframe``, the binary in ``folder`` or where
+    :func:`sitl.ardupilot.process.find_ardupilot` looks)."""
+
+    name: str = "builtin"
+    airframe: str = "s1000"
+    folder: str | Path | None = None
+
+    def __post_init__(self) -> None:
+        if self.name not in AUTOPILOTS:
+            raise ValueError(f"autopilot {self.name!r}: expected one of {', '.join(AUTOPILOTS)}")
+
+
+AUTOPILOTS = ("builtin", "ardupilot")
+
+
+def _vehicle(scenario: Scenario, seed: int, link_config: LinkConfig | None, ground_tap, choice: AutopilotChoice):
+    if choice.name == "builtin":
+        return InProcessVehicle(scenario, seed, link_config, ground_tap)
+    if ground_tap is not None:
+        raise ValueError("ground_tap needs the built-in simulator (ArduCopter's link is a TCP socket)")
+    from sitl.bench.ardupilot_vehicle import ArduPilotVehicle
+
+    return ArduPilotVehicle(scenario, seed, link_config, airframe=choice.airframe, ardupilot=choice.folder)
+
+
+def _battery_used(start_pct: float, end_pct: float) -> float | None:
+    """Percent of the battery used; None when the autopilot did not report it."""
+    used = start_pct - end_pct
+    return round(used, 2) if math.isfinite(used) else None
 
 
 def _radar_pose_error(sim: Simulator, sensors) -> tuple[float | None, float | None]:

@@ -16,7 +16,7 @@ A rehearsal's mission gets exactly what it would get on the field, and nothing m
   The detector and the procedural ground are made once per process, at the first frame (a mission
   without vision never loads them); the detector runs one thread (it shares two cores with the
   simulator).
-- **target telemetry**: a :class:`~chaser_bt.target_telemetry.TargetTelemetry` on the vehicle link
+- **target telemetry**: a :class:`~chaser_bt.target_telemetry.TargetTelemetry` as the vehicle delivers it (on its link in process, on the intruders' own radio beside ArduCopter)
   (the intruders' own MAVLink positions).
 
 The radar pose is a geodetic position and an attitude, as a survey or a calibration gives it; it
@@ -61,7 +61,7 @@ from sitl.world.radar.config import RadarConfig
 from sitl.world.targets import WaypointPath, circle_points
 
 if TYPE_CHECKING:
-    from sitl.bench.in_process import InProcessVehicle
+    from sitl.bench.in_process import LockStepVehicle
 
 __all__ = ["SensorOptions", "RadarPoseFix", "MissionSensors", "ScenarioFrameSource", "build_sensors",
            "calibrated_radar_pose", "surveyed_radar_pose", "shared_detector", "shared_ground", "SURVEY_SIGMA",
@@ -274,7 +274,7 @@ class MissionSensors:
             self.frame_source.close()
 
 
-def _mission_frame(vehicle: InProcessVehicle) -> LocalFrame:
+def _mission_frame(vehicle: LockStepVehicle) -> LocalFrame:
     """The link's ENU frame (at the home the vehicle reports), stepping until it is known."""
     link = vehicle.link
     if link.frame is None and not vehicle.run_until(lambda: link.frame is not None, _HOME_WAIT_S):
@@ -283,7 +283,7 @@ def _mission_frame(vehicle: InProcessVehicle) -> LocalFrame:
     return link.frame
 
 
-def build_sensors(vehicle: InProcessVehicle, options: SensorOptions, seed: int) -> MissionSensors:
+def build_sensors(vehicle: LockStepVehicle, options: SensorOptions, seed: int) -> MissionSensors:
     """Build the mission's sensors on ``vehicle`` (see the module docstring); ``seed`` seeds their noise."""
     sim = vehicle.sim
     scenario = sim.scenario
@@ -312,6 +312,6 @@ def build_sensors(vehicle: InProcessVehicle, options: SensorOptions, seed: int) 
         out.camera = CameraSensor(out.frame_source, VisionPipeline(model, _shipped_detector), whole_frames=options.whole_frames)
         out.resources["camera"] = out.camera
     if options.telemetry and sim.intruders:
-        out.telemetry = TargetTelemetry.attach(vehicle.link, vehicle.clock.now)
+        out.telemetry = vehicle.attach_target_telemetry()
         out.resources["target_telemetry"] = out.telemetry
     return out
