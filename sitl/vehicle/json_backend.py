@@ -13,7 +13,9 @@ Observed with the ArduCopter 4.7-dev build in ``../shared/ardupilot`` (``start_s
 JSON:127.0.0.1``): 1200 frames per physics second by default (SIM_RATE_HZ); its parser looks for
 ``"key":`` with no space after the colon, so the reply must be compact JSON, or SITL logs "No JSON
 sensor message received, resending servos" and never advances; a Python backend answering a
-copter at rest keeps about 5x real time on one loaded core.
+copter at rest keeps about 5x real time on one loaded core. SIM_RATE_HZ must be at least 1.8x the
+loop rate (pre-arm "Gyro 0 rate 400Hz < loop ratex1.8 720Hz"): 400 frames/s needs SCHED_LOOP_RATE
+200, ArduCopter's own 400 Hz loop needs 720.
 
 This module is the format (:func:`parse_servo_packet`, :class:`SensorFrame`) and the lock-step
 loop (:class:`JsonPhysicsServer`) with the physics passed in as a callable. Frames are converted

@@ -230,7 +230,7 @@ def _readonly(values: Sequence[float]) -> np.ndarray:
 
 
 class RotorBody:
-    """A multirotor's state and its step; :meth:`physics` is the :class:`~sitl.vehicle.json_backend.JsonPhysicsServer` callable.
+    """A multirotor's state and its step; :meth:`physics` is the JSON server's callable.
 
     The truth a scorer reads (``position_ned``, ``velocity_ned``, ``rates_frd``, ``thrust_n``,
     ``wind_ned``) comes as read-only arrays; assign a whole new value to change one.
@@ -335,7 +335,7 @@ class RotorBody:
                            (self._vx, self._vy, self._vz), self.euler_ned())
 
     def step(self, pwm_us: Sequence[float], dt: float) -> np.ndarray:
-        """Advance by ``dt`` with motor *i* on ``pwm_us[i]``; returns the specific force in FRD (what the accelerometer reads)."""
+        """Advance by ``dt``, motor *i* on ``pwm_us[i]``; returns the specific force in FRD (the accelerometer)."""
         if len(pwm_us) < len(self._motors):
             raise ValueError(f"{self.params.name}: {len(self._motors)} motors, {len(pwm_us)} PWMs")
         return np.array(self._step(pwm_us, dt))
@@ -361,9 +361,9 @@ class RotorBody:
             tau_z += yaw_k * t
         w, qx, qy, qz = self._qw, self._qx, self._qy, self._qz
         # Body -> NED rotation's columns as needed: thrust along body -z, drag back into the body.
-        r00 = 1.0 - 2.0 * (qy * qy + qz * qz); r01 = 2.0 * (qx * qy - w * qz); r02 = 2.0 * (qx * qz + w * qy)  # noqa: E702
-        r10 = 2.0 * (qx * qy + w * qz); r11 = 1.0 - 2.0 * (qx * qx + qz * qz); r12 = 2.0 * (qy * qz - w * qx)  # noqa: E702
-        r20 = 2.0 * (qx * qz - w * qy); r21 = 2.0 * (qy * qz + w * qx); r22 = 1.0 - 2.0 * (qx * qx + qy * qy)  # noqa: E702
+        r00, r01, r02 = 1.0 - 2.0 * (qy * qy + qz * qz), 2.0 * (qx * qy - w * qz), 2.0 * (qx * qz + w * qy)
+        r10, r11, r12 = 2.0 * (qx * qy + w * qz), 1.0 - 2.0 * (qx * qx + qz * qz), 2.0 * (qy * qz - w * qx)
+        r20, r21, r22 = 2.0 * (qx * qz - w * qy), 2.0 * (qy * qz + w * qx), 1.0 - 2.0 * (qx * qx + qy * qy)
         m = p.mass_kg
         ax, ay, az = self._wind
         rx, ry, rz = self._vx - ax, self._vy - ay, self._vz - az

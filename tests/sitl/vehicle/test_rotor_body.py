@@ -173,6 +173,15 @@ def test_a_steady_spin_about_the_vertical_integrates_to_its_angle():
     assert np.linalg.norm(body.attitude.as_quat()) == pytest.approx(1.0, abs=1e-12)
 
 
+def test_a_spinning_body_wobbles_the_way_eulers_equations_say():
+    # Hand-worked, torque-free, I_x = I_y: the body z rate stays, the (p, q) rate turns from x to y at
+    # (I_z - I_x) / I_x * r = (0.60 - 0.35) / 0.35 * 2 = 1.4286 rad/s; after 1 s, 0.5 (cos, sin)(1.4286).
+    params = dataclasses.replace(AIRFRAMES["s1000"], angular_damping=0.0)
+    body = _aloft(params, rates_frd=(0.5, 0.0, 2.0))
+    _run(body, [OFF] * 8, 1.0)
+    np.testing.assert_allclose(body.rates_frd, (0.0710, 0.4949, 2.0), atol=2e-3)
+
+
 def test_euler_angles_are_scipys_zyx():
     r = Rotation.from_euler("ZYX", (2.5, -0.4, 0.3))  # yaw, pitch, roll
     body = _aloft(attitude=r)
