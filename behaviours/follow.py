@@ -41,6 +41,7 @@ class FollowOutput(enum.Enum):
 
     ALT_HOLD = "alt_hold"  # RC_CHANNELS_OVERRIDE sticks in ALT_HOLD (the paper)
     GUIDED = "guided"  # SET_POSITION_TARGET velocity + yaw rate in GUIDED
+    GUIDED_HEADING = "guided_heading"  # velocity + the heading at the target: the autopilot's yaw controller turns
 
 
 @register_behaviour
@@ -81,7 +82,8 @@ class _Follow(CommandingBehaviour):
     COMMON_PORTS = {
         "slant_range_m": input_port(float, "Slant range set-point (m)", default=40.0, above=0),
         "elevation_deg": input_port(float, "Elevation above the target set-point (deg)", default=40.0, minimum=-90, maximum=90),
-        "output": input_port(FollowOutput, "alt_hold (RC override) or guided (velocity)", default=FollowOutput.ALT_HOLD),
+        "output": input_port(FollowOutput, "alt_hold (RC override), guided (velocity and yaw rate) or guided_heading "
+                             "(velocity and the heading at the target)", default=FollowOutput.ALT_HOLD),
         "use_roll": input_port(bool, "Roll loop: full horizontal control", default=False),
         "feed_forward": input_port(bool, "Feed the target's velocity forward", default=False),
         "stale_after_s": input_port(float, "Hover when target data is older than this (s)", default=2.0, minimum=0),
@@ -100,7 +102,7 @@ class _Follow(CommandingBehaviour):
         return {}
 
     def initialise(self) -> None:
-        out = self.get_input("output")
+        out = self._output = self.get_input("output")
         self._mode = "ALT_HOLD" if out is FollowOutput.ALT_HOLD else "GUIDED"
         config = FollowConfig(slant_range_m=self.get_input("slant_range_m"),
                               elevation_rad=math.radians(self.get_input("elevation_deg")),
@@ -145,8 +147,10 @@ class _Follow(CommandingBehaviour):
         self._stale_since = None
         if cmd.t != self._sent_t:  # a new control step (5 Hz); the link re-sends held sticks itself
             self._sent_t = cmd.t
-            if self._mode == "ALT_HOLD":
+            if self._output is FollowOutput.ALT_HOLD:
                 link.rc_override(*cmd.sticks.as_tuple())
+            elif self._output is FollowOutput.GUIDED_HEADING:
+                link.velocity_enu(cmd.velocity_enu, yaw_enu_rad=cmd.heading_enu)
             else:
                 link.velocity_enu(cmd.velocity_enu, yaw_rate=cmd.yaw_rate)
         pv = cmd.pv

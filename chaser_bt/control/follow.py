@@ -195,7 +195,9 @@ class FollowCommand:
 
     ``hover`` True: stop (stale or missing target data; ``reason`` says which). Otherwise the loop
     outputs: ``yaw_rate`` (rad/s ENU, counter-clockwise), ``forward_accel`` / ``right_accel``
-    (m/s^2, body), ``climb`` (m/s); ``sticks`` for ALT_HOLD and ``velocity_enu`` for GUIDED.
+    (m/s^2, body), ``climb`` (m/s); ``sticks`` for ALT_HOLD and ``velocity_enu`` for GUIDED, with
+    either ``yaw_rate`` or ``heading_enu`` (the filtered bearing to the target, ENU yaw: for an
+    autopilot whose own yaw controller should turn the nose).
     """
 
     t: float
@@ -208,6 +210,7 @@ class FollowCommand:
     sticks: RcSticks = RcSticks(1500, 1500, 1500, 1500)
     velocity_enu: np.ndarray = field(default_factory=lambda: np.zeros(3))
     pv: ProcessVariables | None = None
+    heading_enu: float = 0.0
 
 
 class FollowController:
@@ -343,7 +346,8 @@ class FollowController:
 
         sticks = sm.sticks(forward_accel=forward, right_accel=right_acc, climb_mps=climb, yaw_rate_enu=yaw_rate)
         return FollowCommand(t, False, "", yaw_rate, forward, right_acc, climb, sticks,
-                             self._guided_velocity(pos, cue, vt if ff else np.zeros(3), az, gr, yaw, climb), pv)
+                             self._guided_velocity(pos, cue, vt if ff else np.zeros(3), az, gr, yaw, climb), pv,
+                             wrap_pi(yaw + az))
 
     def _guided_velocity(self, pos: np.ndarray, cue: TargetCue, vt: np.ndarray, az: float, gr: float, yaw: float,
                          climb: float) -> np.ndarray:

@@ -444,15 +444,23 @@ class VehicleLink:
         """GUIDED: fly to ``point``'s latitude/longitude at ``alt_rel_m`` above home, and hold."""
         self._send_position(point.lat_deg, point.lon_deg, alt_rel_m, yaw_enu_rad, relative=True)
 
-    def velocity_enu(self, vel_enu: Sequence[float] | np.ndarray, yaw_rate: float | None = None) -> None:
-        """GUIDED: fly at ``vel_enu`` m/s (``yaw_rate`` rad/s counter-clockwise); resend < 3 s or it stops."""
+    def velocity_enu(self, vel_enu: Sequence[float] | np.ndarray, yaw_rate: float | None = None,
+                     yaw_enu_rad: float | None = None) -> None:
+        """GUIDED: fly at ``vel_enu`` m/s and turn at ``yaw_rate`` rad/s counter-clockwise, or to the
+        heading ``yaw_enu_rad`` (the autopilot's own yaw controller turns there; not both); resend < 3 s
+        or it stops."""
+        if yaw_rate is not None and yaw_enu_rad is not None:
+            raise ValueError("velocity_enu: give a yaw rate or a heading, not both")
         self._require_vehicle()
         vn, ve, vd = enu_to_ned(vel_enu)
         mask = _VELOCITY_ONLY | (mavlink.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE if yaw_rate is None else 0)
+        if yaw_enu_rad is not None:
+            mask &= ~mavlink.POSITION_TARGET_TYPEMASK_YAW_IGNORE
+        yaw_ned = 0.0 if yaw_enu_rad is None else wrap_pi(enu_yaw_to_heading(yaw_enu_rad))
         rate_ned = 0.0 if yaw_rate is None else -yaw_rate  # NED yaw rate turns clockwise seen from above
         self.conn.mav.set_position_target_local_ned_send(
             self._time_boot_ms(), self.target_sysid, self.target_compid, mavlink.MAV_FRAME_LOCAL_NED, mask,
-            0, 0, 0, vn, ve, vd, 0, 0, 0, 0, rate_ned,
+            0, 0, 0, vn, ve, vd, 0, 0, 0, yaw_ned, rate_ned,
         )
         rate = math.nan if yaw_rate is None else float(yaw_rate)
         self.last_setpoint = Setpoint("velocity", self._now(), (float(vel_enu[0]), float(vel_enu[1]), float(vel_enu[2]), rate))

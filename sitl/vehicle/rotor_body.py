@@ -199,11 +199,17 @@ QUAD = RotorParams(name="quad", frame=FRAMES["quad-plus"], mass_kg=1.5, arm_m=0.
 # and ESC at 0.3 m, a 1.5 kg gimbal 0.2 m below the centre, a 3 kg centre: about 0.35 kg m² in roll
 # and pitch, 0.6 in yaw. A 15-inch prop spins up more slowly than the quad's (60 ms) and drags a
 # torque of about 0.024 m per newton (C_Q / C_T ~ 0.064 D). Drag as the built-in simulator's S1000.
-# Stock rate gains fly it (their output is normalised by the motors' authority): the slow test
-# in tests/sitl/vehicle/test_json_backend.py holds 10 m within 1 m on them.
+# Stock roll and pitch gains fly it (their output is normalised by the motors' authority): the slow
+# test in tests/sitl/vehicle/test_json_backend.py holds 10 m within 1 m on them. Yaw is another
+# matter: prop drag gives an octocopter little yaw authority for its inertia, and with the stock
+# ATC_RAT_YAW_P 0.2 the yaw-rate loop is slower than the 4.5/s yaw-angle loop around it, so a 60 deg
+# heading step overshot by 20 deg and rang for 10 s (a chase's camera swung +-90 deg off the target).
+# Tuned as autotune would, by heading steps in ArduCopter: rate P 1.5, I 0.15 and a reachable yaw
+# acceleration (90 deg/s^2) overshoot by 12 deg and settle in 2.5 s.
 S1000 = RotorParams(name="s1000", frame=FRAMES["octa-x"], mass_kg=7.5, arm_m=0.5225,
                     inertia_kgm2=(0.35, 0.35, 0.60), max_thrust_n=22.0, yaw_torque_per_n=0.024,
-                    motor_tau_s=0.06, drag_lin=0.3, drag_quad=0.12, angular_damping=0.05)
+                    motor_tau_s=0.06, drag_lin=0.3, drag_quad=0.12, angular_damping=0.05,
+                    ardupilot_tuning=(("ATC_RAT_YAW_P", 1.5), ("ATC_RAT_YAW_I", 0.15), ("ATC_ACCEL_Y_MAX", 9000.0)))
 
 AIRFRAMES: dict[str, RotorParams] = {p.name: p for p in (QUAD, S1000)}
 

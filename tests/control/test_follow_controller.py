@@ -54,6 +54,15 @@ def test_target_left_yaws_counter_clockwise_and_low_chaser_climbs():
     assert cmd.climb > 0 and cmd.sticks.throttle > 1500
 
 
+def test_heading_is_the_bearing_to_the_target():
+    """A target 25 m east and 25 m north of a chaser facing east: 45 deg left, so ENU yaw pi/4."""
+    fc = FollowController()
+    cmd = fc.update(0.0, np.array([0, 0, 30.0]), np.zeros(3), EAST, cue(0.0, [25, 25, 20]))
+    assert cmd.heading_enu == pytest.approx(math.pi / 4)
+    cmd = FollowController().update(0.0, np.array([0, 0, 30.0]), np.zeros(3), math.radians(170.0), cue(0.0, [-25, -25, 20]))
+    assert cmd.heading_enu == pytest.approx(-3 * math.pi / 4)  # across the +-180 deg seam, wrapped
+
+
 def test_at_the_set_point_everything_centres():
     c = FollowConfig()
     fc = FollowController(c)

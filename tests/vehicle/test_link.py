@@ -398,6 +398,18 @@ def test_velocity_enu_becomes_local_ned_velocity(rig):
     assert not m.type_mask & mavlink2.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
 
 
+def test_velocity_enu_with_a_heading_lets_the_autopilot_turn(rig):
+    """ENU yaw 0 (east) is NED heading +90 deg; the yaw is sent and the yaw rate masked."""
+    rig.link.velocity_enu((1.0, 0.0, 0.0), yaw_enu_rad=0.0)
+    rig.fake.tick()
+    (m,) = rig.fake.sent_by_link("SET_POSITION_TARGET_LOCAL_NED")
+    assert m.yaw == pytest.approx(math.pi / 2)
+    assert not m.type_mask & mavlink2.POSITION_TARGET_TYPEMASK_YAW_IGNORE
+    assert m.type_mask & mavlink2.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
+    with pytest.raises(ValueError, match="not both"):
+        rig.link.velocity_enu((1.0, 0.0, 0.0), yaw_rate=0.1, yaw_enu_rad=0.0)
+
+
 def test_rc_override_is_resent_at_5hz_until_released(rig):
     rig.link.rc_override(pitch=1300, throttle=1500)
     rig.run(2.0)
