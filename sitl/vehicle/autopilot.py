@@ -209,6 +209,7 @@ class Autopilot:
         self.fence_breaches = 0  # FENCE_TYPE bits breached now (SYS_STATUS GEOFENCE health)
         self.missions = MissionStore()
         self._ground_time = 0.0
+        self._spool_down_s = 0.0
         self._idle = False
         self._idle_time = 0.0
         self._update_sensors(0.0)
@@ -328,9 +329,11 @@ class Autopilot:
         ph = self.phys
         pc = self.pc
         if roll is None or pitch is None:
+            pc.jerk_xy = self.p["PSC_JERK_XY"]
             roll, pitch = pc.update_xy(dt, self.ex, self.ey, self.evx, self.evy, ph.yaw, self.angle_max)
         else:
             pc.tpx, pc.tpy, pc.tvx, pc.tvy = self.ex, self.ey, self.evx, self.evy
+            pc.tax = pc.tay = 0.0
         thrust = pc.update_z(dt, self.ez, self.evz, ph.roll, ph.pitch)
         yaw_rate = pc.update_yaw(dt, ph.yaw, AUTO_YAW_RATE_MAX + abs(pc.yaw_rate_ff))
         self.output(roll, pitch, yaw_rate, thrust)
@@ -360,11 +363,17 @@ class Autopilot:
 
     # ------------------------------------------------------------------ detectors, failsafes
     def _land_detector(self, h: float) -> None:
-        if not self.phys.on_ground:
+        """ArduCopter's land detector: landed once the throttle has sat at its lower limit (here: a thrust
+        command at or below ground idle) with the rotors on the ground for LAND_DETECTOR_TRIGGER_SEC."""
+        ph = self.phys
+        if not ph.on_ground:
             self._ground_time = 0.0
             self.land_complete = False
             return
-        self._ground_time += h
+        if ph.thrust_cmd <= self.airframe.idle_thrust_n:
+            self._ground_time += h
+        else:
+            self._ground_time = 0.0
         if not self.armed or self._ground_time >= LAND_DETECT_S:
             self.land_complete = True
 
@@ -372,8 +381,12 @@ class Autopilot:
         if not self.armed:
             return
         if self.land_complete and self._mode.landing():
-            self._disarm()
+            # a landing mode disarms once the rotors have spooled down to ground idle (MOT_SPOOL_TIME)
+            self._spool_down_s += h
+            if self._spool_down_s >= self.p["MOT_SPOOL_TIME"]:
+                self._disarm()
             return
+        self._spool_down_s = 0.0
         delay = self.p["DISARM_DELAY"]
         if self._idle and self.land_complete and delay > 0:
             self._idle_time += h
