@@ -113,12 +113,23 @@ def _wait_port(port: int, proc: subprocess.Popen | None, timeout_s: float) -> No
     raise RuntimeError(f"nothing listened on TCP {port} within {timeout_s:.0f} s")
 
 
+# The built-in's airframe for the comparison: ArduPilot's SITL quad ("+") as far as the autopilot can tell,
+# its hover throttle (MOT_THST_HOVER 0.39 in copter.parm) and its drag: in the 3 m/s headwind its
+# top ground speed was 8.3 m/s at the 30 deg lean limit, 11.3 m/s through the air; linear and quadratic
+# drag in the ratio of its momentum and body drag (EK3_DRAG_MCOEF 0.209 /s, BCOEF 17.2 kg/m^2, printed
+# at its start) reach that on our 8 kg airframe. `--airframe s1000` flies the built-in's own default.
+QUAD_AIRFRAME = {"max_thrust_ratio": round(1.0 / 0.39, 3), "drag_lin_h": 1.37, "drag_quad_h": 0.234}
+AIRFRAMES = {"quad": QUAD_AIRFRAME, "s1000": {}}
+
+
 @dataclass
 class BuiltinBackend:
-    """The built-in simulator (``chaser-bt sitl``), its default airframe, no gusts."""
+    """The built-in simulator (``chaser-bt sitl``): no gusts, ArduPilot SITL's parameter defaults where
+    they differ from ours (FS_GCS_ENABLE 0), the given airframe overrides."""
 
     speedup: float
     seed: int = 1
+    airframe: dict = field(default_factory=lambda: dict(QUAD_AIRFRAME))
     name: str = "builtin"
     _proc: subprocess.Popen | None = field(default=None, repr=False)
 
@@ -131,6 +142,8 @@ class BuiltinBackend:
             "name": f"fidelity_{case.name}",
             "home": {"lat_deg": lat, "lon_deg": lon, "alt_m": alt, "heading_deg": heading},
             "wind": {"speed_mps": case.wind_mps, "direction_deg": case.wind_from_deg},
+            "airframe": self.airframe,
+            "params": {"FS_GCS_ENABLE": 0},
         }
         path = workdir / f"{case.name}_scenario.yaml"
         path.write_text(yaml.safe_dump(scenario))
@@ -365,11 +378,13 @@ def main() -> None:
     parser.add_argument("--cases", default=",".join(c.name for c in CASES),
                         help=f"comma-separated flights (default {','.join(c.name for c in CASES)})")
     parser.add_argument("--seed", type=int, default=1, help="the built-in simulator's seed (default 1)")
+    parser.add_argument("--airframe", choices=sorted(AIRFRAMES), default="quad",
+                        help="the built-in's airframe: quad, matched to ArduPilot's SITL quad (default), or s1000, its own")
     parser.add_argument("--keep", type=Path, default=None, help="keep the logs (MCAP) in this folder (default: a temporary one)")
     args = parser.parse_args()
     logging.basicConfig(level=logging.INFO, stream=sys.stderr, format="%(message)s")
     folder = args.ardupilot or Path(os.environ.get("CHASER_BT_ARDUPILOT", ROOT.parent / "shared" / "ardupilot"))
-    known: dict[str, Backend] = {"builtin": BuiltinBackend(args.speedup, args.seed),
+    known: dict[str, Backend] = {"builtin": BuiltinBackend(args.speedup, args.seed, dict(AIRFRAMES[args.airframe])),
                                  "arducopter": ArduCopterBackend(folder.resolve(), args.speedup)}
     backends = [known[b] for b in args.backends.split(",") if b]
     cases = [c for c in CASES if c.name in args.cases.split(",")]
@@ -392,7 +407,8 @@ def main() -> None:
                 except (RuntimeError, ValueError, subprocess.TimeoutExpired) as e:
                     results[backend.name][case.name] = {"error": str(e)}
     table, gaps = compare(results)
-    print(json.dumps({"speedup": args.speedup, "seed": args.seed, **results, "compare": table, "gaps": gaps}))
+    print(json.dumps({"speedup": args.speedup, "seed": args.seed, "airframe": args.airframe, **results,
+                      "compare": table, "gaps": gaps}))
 
 
 if __name__ == "__main__":
