@@ -162,6 +162,8 @@ class PositionController:
         self.tpx = self.tpy = self.tvx = self.tvy = 0.0
         self.tax = self.tay = 0.0
         self.jerk_xy = 5.0  # m/s^3, PSC_JERK_XY
+        self._limit = (0.0, 0.0)  # the lean-limited acceleration, when the limit holds
+        self._pos_err = self._vel_err = (0.0, 0.0)
         self.gx = self.gy = 0.0
         self.xy_pos_goal = False
         self.xy_external = self.z_external = False  # targets set by a trajectory this step, not shaped
@@ -185,6 +187,7 @@ class PositionController:
         self.tpx, self.tpy, self.tpz = px, py, pz
         self.tvx, self.tvy, self.tvz = vx, vy, vz
         self.tax = self.tay = 0.0
+        self._limit = (0.0, 0.0)
         self.ix = self.iy = self.iz = 0.0
         self.xy_pos_goal = self.z_pos_goal = False
         self.xy_external = self.z_external = False
@@ -244,12 +247,23 @@ class PositionController:
         if self.xy_external:
             self.xy_external = False
             return self.tax, self.tay
-        # move the target along with its acceleration, then reshape that acceleration (AC_PosControl order)
+        # move the target along with its acceleration, then reshape that acceleration (AC_PosControl order);
+        # while the lean limit holds the vehicle back, the target does not run further ahead of it
+        # (update_pos_vel_accel_xy with the limit vector)
         ax, ay = self.tax, self.tay
-        self.tpx += (self.tvx + 0.5 * ax * dt) * dt
-        self.tpy += (self.tvy + 0.5 * ay * dt) * dt
-        self.tvx += ax * dt
-        self.tvy += ay * dt
+        dpx, dpy = (self.tvx + 0.5 * ax * dt) * dt, (self.tvy + 0.5 * ay * dt) * dt
+        dvx, dvy = ax * dt, ay * dt
+        lx, ly = self._limit
+        if lx or ly:
+            (pex, pey), (vex, vey) = self._pos_err, self._vel_err
+            if dpx * lx + dpy * ly > 0.0 and pex * lx + pey * ly > 0.0:
+                dpx = dpy = 0.0
+            if dvx * lx + dvy * ly > 0.0 and vex * lx + vey * ly > 0.0 and self.tvx * lx + self.tvy * ly >= 0.0:
+                dvx = dvy = 0.0
+        self.tpx += dpx
+        self.tpy += dpy
+        self.tvx += dvx
+        self.tvy += dvy
         accel, jerk = self.accel_xy, self.jerk_xy
         if self.xy_pos_goal:
             ex, ey = self.gx - self.tpx, self.gy - self.tpy
@@ -276,9 +290,13 @@ class PositionController:
         ay = ffy + VEL_XY_P * evy + self.iy
         amax = GRAVITY * math.tan(angle_max)
         a = math.sqrt(ax * ax + ay * ay)
+        self._pos_err = (self.tpx - px, self.tpy - py)
+        self._vel_err = (evx, evy)
         if a > amax:
             ax, ay = ax * amax / a, ay * amax / a
+            self._limit = (ax, ay)
         else:
+            self._limit = (0.0, 0.0)
             self.ix = min(max(self.ix + VEL_XY_I * evx * dt, -VEL_XY_IMAX), VEL_XY_IMAX)
             self.iy = min(max(self.iy + VEL_XY_I * evy * dt, -VEL_XY_IMAX), VEL_XY_IMAX)
         return accel_to_lean(ax, ay, yaw)
