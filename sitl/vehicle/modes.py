@@ -6,7 +6,7 @@ Each mode turns pilot sticks, GCS targets or its own plan into goals for one
 mode's speed and acceleration limits) tracked by a cascade position P -> velocity PI ->
 acceleration -> lean angles and thrust. Gains follow ArduCopter's defaults where the structure
 matches (PSC_POSXY_P 1, PSC_VELXY_P 2 / I 1, PSC_POSZ_P 1); the vertical velocity PI (4 / 2)
-stands in for PSC_VELZ_P with the PSC_ACCZ loop folded in. A position step settles in a few
+stands in for PSC_VELZ_P, followed by an acceleration PI standing in for PSC_ACCZ. A position step settles in a few
 seconds without overshoot on the default airframe.
 
 Modes and behaviour follow ArduCopter 4.5/4.6 (ardupilot.org/copter/docs/flight-modes.html):
@@ -39,6 +39,10 @@ POS_Z_P = 1.0
 VEL_Z_P = 4.0
 VEL_Z_I = 2.0
 VEL_Z_IMAX = 4.0  # m/s^2
+# PSC_ACCZ_P 0.5 and _I 1.0 act in throttle per cm/s^2 / 1000: at a hover throttle of 0.39 (ArduPilot's SITL
+# quad) that is 1.26 and 2.5 /s of extra acceleration per m/s^2 of acceleration error
+ACC_Z_P = 1.26
+ACC_Z_I = 2.5
 SHAPE_P = 1.5  # target shaping: final-approach bandwidth, 1/s
 YAW_P = 3.0
 AUTO_YAW_RATE_MAX = math.radians(90.0)
@@ -172,6 +176,8 @@ class PositionController:
         self.ix = self.iy = 0.0
         self.tpz = self.tvz = 0.0
         self._taz = 0.0
+        self.ia = 0.0
+        self._last_vz = 0.0
         self.gz = 0.0
         self.z_pos_goal = False
         self.speed_up = self.speed_dn = 1.0
@@ -188,7 +194,8 @@ class PositionController:
         self.tvx, self.tvy, self.tvz = vx, vy, vz
         self.tax = self.tay = 0.0
         self._limit = (0.0, 0.0)
-        self.ix = self.iy = self.iz = 0.0
+        self.ix = self.iy = self.iz = self.ia = 0.0
+        self._last_vz = vz
         self.xy_pos_goal = self.z_pos_goal = False
         self.xy_external = self.z_external = False
         self.gx = self.gy = self.gz = 0.0
@@ -319,13 +326,22 @@ class PositionController:
         return dv / dt
 
     def update_z(self, dt: float, pz: float, vz: float, roll: float, pitch: float) -> float:
-        """Advance the vertical target and return the thrust (N) that tracks it."""
+        """Advance the vertical target and return the thrust (N) that tracks it.
+
+        The velocity PI's acceleration demand goes through an acceleration PI on the measured climb
+        acceleration (ArduPilot's PSC_ACCZ loop), so a demand the vehicle cannot follow, such as
+        descending while standing on the ground, winds the thrust down within a fraction of a second.
+        """
         ff = self._shape_z(dt)
         ev = self.tvz + POS_Z_P * (self.tpz - pz) - vz
         az = ff + VEL_Z_P * ev + self.iz
-        thrust = self.mass * (GRAVITY + az) / max(math.cos(roll) * math.cos(pitch), 0.5)
+        a_meas = (vz - self._last_vz) / dt
+        self._last_vz = vz
+        ea = az - a_meas
+        thrust = self.mass * (GRAVITY + az + ACC_Z_P * ea + self.ia) / max(math.cos(roll) * math.cos(pitch), 0.5)
         if 0.0 < thrust < self.max_thrust:
             self.iz = min(max(self.iz + VEL_Z_I * ev * dt, -VEL_Z_IMAX), VEL_Z_IMAX)
+            self.ia = min(max(self.ia + ACC_Z_I * ea * dt, -GRAVITY), GRAVITY)
         return min(max(thrust, 0.0), self.max_thrust)
 
     def update_yaw(self, dt: float, yaw: float, rate_max: float) -> float:
