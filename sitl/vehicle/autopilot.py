@@ -41,6 +41,7 @@ from sitl.vehicle.airframe import AirframeParams
 from sitl.vehicle.fence import FENCE_GIVE_UP_DISTANCE_M, breach_distance, fence_breaches
 from sitl.vehicle.mission import MissionStore
 from sitl.vehicle.modes import (
+    ARMING_DELAY_S,
     AUTO_YAW_RATE_MAX,
     LAND_DETECT_S,
     FlightMode,
@@ -174,6 +175,7 @@ class Autopilot:
         self._modes = make_modes()
         self._mode: FlightMode = self._modes[0]
         self.armed = False
+        self.armed_at = -math.inf
         self.land_complete = True
         self.home: GeoPoint | None = None
         self.home_enu: tuple[float, float, float] | None = None
@@ -235,7 +237,8 @@ class Autopilot:
         ph = self.phys
         self._idle = False
         if self.armed:
-            ph.motors_on = True
+            # ArduCopter holds the motor interlock off for ARMING_DELAY_SEC after arming: rotors still
+            ph.motors_on = self.time_s - self.armed_at >= ARMING_DELAY_S
             self._mode.run(self, h)
         else:
             ph.motors_on = False
@@ -518,6 +521,7 @@ class Autopilot:
                 self._text(_SEV_CRITICAL, reason)
                 return CommandResult(False, reason)
         self.armed = True
+        self.armed_at = self.time_s
         self._idle_time = 0.0
         if self.ekf_ok:  # ArduCopter resets home to where it arms, when it knows where that is
             self._set_home()

@@ -50,6 +50,7 @@ BRAKE_ACCEL = 7.5  # ArduCopter BRAKE_MODE_DECEL_RATE, m/s^2
 LAND_DETECT_S = 1.0  # ArduCopter LAND_DETECTOR_TRIGGER_SEC
 FACE_TARGET_MIN_DIST = 2.0  # closer targets keep the heading (WP_YAW_BEHAVIOR 2)
 REACHED_TOL = 0.1  # m: the shaped target counts as arrived this close to its goal
+ARMING_DELAY_S = 2.0  # s, ArduCopter's ARMING_DELAY_SEC: no rotor turns this long after arming
 ATC_INPUT_TC = 0.15  # s, ArduCopter's attitude input time constant (the airframe's attitude lag here)
 
 
@@ -391,6 +392,7 @@ class ModeHost(Protocol):
     ekf_ok: bool
     land_complete: bool
     armed: bool
+    armed_at: float
 
     @property
     def angle_max(self) -> float: ...
@@ -605,7 +607,8 @@ class Guided(FlightMode):
         self._last_evz = ap.evz
 
     def _run_takeoff(self, ap: ModeHost, dt: float) -> None:
-        """ArduCopter's _AutoTakeoff::run: on the ground, the rotors first spool up (MOT_SPOOL_TIME) with
+        """ArduCopter's _AutoTakeoff::run: on the ground, the rotors first spool up (MOT_SPOOL_TIME, from the
+        end of the 2 s arming delay at the earliest) with
         the controllers relaxed; then the throttle ramps from zero over TKOFF_SLEW_TIME until lift-off is
         detected (throttle at TKOFF_THR_MAX, at most 0.9; climbing at 10 % of WPNAV_SPEED_UP; or
         accelerating upwards at half WPNAV_ACCEL_Z); only then does the position controller fly the climb."""
@@ -614,7 +617,9 @@ class Guided(FlightMode):
         self._last_evz = ap.evz
         if not self.lifted_off:
             ap.reset_controller()
-            if ap.time_s - self.takeoff_started < p["MOT_SPOOL_TIME"]:
+            # the spool-up starts once the arming delay has let the rotors turn
+            spool_from = max(self.takeoff_started, ap.armed_at + ARMING_DELAY_S)
+            if ap.time_s - spool_from < p["MOT_SPOOL_TIME"]:
                 ap.output(0.0, 0.0, 0.0, 0.0)
                 return
             slew = max(p["TKOFF_SLEW_TIME"], 0.25)

@@ -111,18 +111,22 @@ def test_the_target_waits_for_a_vehicle_held_back_by_its_lean_limit(make_ap, run
 
 
 # ---------------------------------------------------------------- take-off (_AutoTakeoff::run) and land detector
-def test_takeoff_spools_up_then_ramps_the_throttle_until_it_lifts(make_ap, run_for):
-    # MOT_SPOOL_TIME 0.5 s at zero throttle, then the throttle climbs 1 / TKOFF_SLEW_TIME = 0.5 per s;
-    # the default airframe hovers at 0.5 throttle, so it lifts 0.5 + 1.0 = 1.5 s after the command
-    ap = make_ap()
-    run_for(ap, 4.0)
-    ap.request_mode(GUIDED)
-    ap.request_arm(True)
-    assert ap.request_takeoff(20.0).accepted
-    heights = []
-    run_for(ap, 3.0, each=lambda a: heights.append(a.truth.pos_enu[2]))
-    first_up = next(i for i, h in enumerate(heights) if h > 0.0) * 0.02
-    assert first_up == pytest.approx(1.5, abs=0.1)
+def test_takeoff_waits_out_the_arming_delay_spools_up_then_ramps_the_throttle(make_ap, run_for):
+    # the rotors stay still for ArduCopter's 2 s arming delay, spool up for MOT_SPOOL_TIME 0.5 s, then
+    # the throttle climbs 1 / TKOFF_SLEW_TIME = 0.5 per s from zero; the default airframe hovers at 0.5
+    # throttle, so a take-off commanded on arming lifts 2 + 0.5 + 1.0 = 3.5 s after it, one commanded
+    # 3 s after arming (delay over) 0.5 + 1.0 = 1.5 s after the command
+    for wait, expected in ((0.0, 3.5), (3.0, 1.5)):
+        ap = make_ap()
+        run_for(ap, 4.0)
+        ap.request_mode(GUIDED)
+        ap.request_arm(True)
+        run_for(ap, wait)
+        assert ap.request_takeoff(20.0).accepted
+        heights = []
+        run_for(ap, 5.0, each=lambda a: heights.append(a.truth.pos_enu[2]))
+        first_up = next(i for i, h in enumerate(heights) if h > 0.0) * 0.02
+        assert first_up == pytest.approx(expected, abs=0.1)
 
 
 def test_land_disarms_one_second_at_the_throttle_floor_and_a_spool_down_later(airborne, run_for):
