@@ -17,7 +17,10 @@ descent start (sinking at 0.3 m/s or more), descent (-> within 0.3 m of the rest
 -> disarmed, and the landing error (horizontal distance from the arming point).
 
 Backends: ``builtin`` (``chaser-bt sitl`` at ``--speedup``, seeded) and ``arducopter`` (the real
-ArduCopter binary, its own quad physics, model ``+``, at the same speed-up). A backend is a small class
+ArduCopter binary, its own quad physics, model ``+``, at the same speed-up). So that the autopilots are
+compared and not the airframes, the built-in flies by default an airframe matched to ArduPilot's SITL
+quad (its hover throttle and drag, :data:`QUAD_AIRFRAME`); ``--airframe s1000`` flies its own default
+S1000-class octocopter instead, whose lower drag makes the headwind cost it far less. A backend is a small class
 with ``start(case) -> url`` and ``stop()``, so another (ArduCopter on our physics through its JSON
 interface) slots in beside them. ArduCopter is looked for in ``--ardupilot DIR``, else
 ``$CHASER_BT_ARDUPILOT``, else ``../shared/ardupilot`` beside the repository; when it is absent its

@@ -9,9 +9,11 @@ their timeout, and the flight modes of :mod:`sitl.vehicle.modes`. Time only adva
 
 Without a transmitter the pilot's RC sits as in ArduPilot's SITL with no joystick: roll, pitch
 and yaw centred (1500) and the throttle stick down (1000), so ALT_HOLD descends until the GCS
-overrides throttle to 1500 (DESIGN §5). Channels 5-16 read 1500 (no mode switch is simulated). The land detector uses rotor contact with the ground held for
-LAND_DETECTOR_TRIGGER_SEC (1 s), standing in for ArduCopter's "throttle at minimum and not
-accelerating" test.
+overrides throttle to 1500 (DESIGN §5). Channels 5-16 read 1500 (no mode switch is simulated).
+As ArduCopter, the rotors stay still for 2 s after arming (ARMING_DELAY_SEC); the land detector
+reports landed once the rotors touch the ground with the thrust command at its lower limit (ground
+idle) for LAND_DETECTOR_TRIGGER_SEC (1 s), ArduCopter's "throttle at its lower limit" test, and a
+landing mode disarms after the rotors spool down (MOT_SPOOL_TIME).
 
 Mode changes follow Copter::set_mode: while disarmed any existing mode is accepted (the checks a
 mode needs, such as a position estimate, come at arming), while armed a mode that needs a position
