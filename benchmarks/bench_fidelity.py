@@ -8,8 +8,8 @@ The same trees are flown, by the same ``chaser-bt run --record`` over TCP, again
   is into the wind). ArduCopter: SIM_WIND_SPD / SIM_WIND_DIR; the built-in: the scenario's ``wind:``.
 
 Both are measured in the same way, from the ground: the MCAP log's ``/mavlink/in`` telemetry
-(GLOBAL_POSITION_INT, timed by its ``time_boot_ms``; HEARTBEAT; COMMAND_ACK) and the position targets
-in ``/mavlink/out``. Per phase: arm -> leaves the ground (> 0.5 m above the arming height), climb
+(GLOBAL_POSITION_INT; HEARTBEAT; COMMAND_ACK) and the position targets in ``/mavlink/out``, all timed
+on the vehicle's clock (the latest ``time_boot_ms`` received before each), not on the mission's. Per phase: arm -> leaves the ground (> 0.5 m above the arming height), climb
 (leaves the ground -> within 1 m of 20 m), each leg (its first position target -> within 2 m of the
 waypoint, the GoTo's acceptance radius), corner overshoot (the largest distance from the next leg's
 line while flying it: how far the turn swings wide), mode request (RTL or LAND acknowledged) ->
@@ -231,6 +231,8 @@ def read_telemetry(path: Path) -> Telemetry:
     out = Telemetry()
     raw_targets: list[tuple[float, float, float]] = []
     was_armed = False
+    now = 0.0  # the vehicle's clock: the latest time_boot_ms read, so events are timed as the vehicle sent
+    #            them, not as late as a busy mission process happened to read them
     for m in flight.messages:
         if m.topic not in ("/mavlink/in", "/mavlink/out"):
             continue
@@ -238,20 +240,24 @@ def read_telemetry(path: Path) -> Telemetry:
         kind, f = d["type"], d["fields"]
         if m.topic == "/mavlink/out":
             if kind == "SET_POSITION_TARGET_GLOBAL_INT":
-                raw_targets.append((m.t, f["lat_int"] * 1e-7, f["lon_int"] * 1e-7))
+                raw_targets.append((now, f["lat_int"] * 1e-7, f["lon_int"] * 1e-7))
             continue
+        if d["sysid"] != 1:
+            continue
+        if "time_boot_ms" in f:
+            now = max(now, f["time_boot_ms"] * 1e-3)
         if kind == "GLOBAL_POSITION_INT":
             raw.append((f["time_boot_ms"] * 1e-3, f["lat"] * 1e-7, f["lon"] * 1e-7, f["relative_alt"] * 1e-3,
                         f["vz"] * 1e-2))
         elif kind == "COMMAND_ACK" and f["result"] == 0:
-            out.acks.append((m.t, f["command"]))
-        elif kind == "HEARTBEAT" and d["sysid"] == 1:
+            out.acks.append((now, f["command"]))
+        elif kind == "HEARTBEAT":
             armed = bool(f["base_mode"] & ARMED_FLAG)
             if was_armed and not armed:
-                out.disarmed_at.append(m.t)
+                out.disarmed_at.append(now)
             was_armed = armed
         elif kind == "STATUSTEXT" and f["text"].startswith("Disarming"):
-            out.disarmed_at.append(m.t)
+            out.disarmed_at.append(now)
     t_arm = next((t for t, c in out.acks if c == MAV_CMD_COMPONENT_ARM_DISARM), None)
     if t_arm is None or not raw:
         raise ValueError(f"{path}: the vehicle never armed, or sent no GLOBAL_POSITION_INT")
