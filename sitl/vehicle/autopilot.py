@@ -9,9 +9,11 @@ their timeout, and the flight modes of :mod:`sitl.vehicle.modes`. Time only adva
 
 Without a transmitter the pilot's RC sits as in ArduPilot's SITL with no joystick: roll, pitch
 and yaw centred (1500) and the throttle stick down (1000), so ALT_HOLD descends until the GCS
-overrides throttle to 1500 (DESIGN §5). Channels 5-16 read 1500 (no mode switch is simulated). The land detector uses rotor contact with the ground held for
-LAND_DETECTOR_TRIGGER_SEC (1 s), standing in for ArduCopter's "throttle at minimum and not
-accelerating" test.
+overrides throttle to 1500 (DESIGN §5). Channels 5-16 read 1500 (no mode switch is simulated).
+As ArduCopter, the rotors stay still for 2 s after arming (ARMING_DELAY_SEC); the land detector
+reports landed once the rotors touch the ground with the thrust command at its lower limit (ground
+idle) for LAND_DETECTOR_TRIGGER_SEC (1 s), ArduCopter's "throttle at its lower limit" test, and a
+landing mode disarms after the rotors spool down (MOT_SPOOL_TIME).
 
 Mode changes follow Copter::set_mode: while disarmed any existing mode is accepted (the checks a
 mode needs, such as a position estimate, come at arming), while armed a mode that needs a position
@@ -41,6 +43,7 @@ from sitl.vehicle.airframe import AirframeParams
 from sitl.vehicle.fence import FENCE_GIVE_UP_DISTANCE_M, breach_distance, fence_breaches
 from sitl.vehicle.mission import MissionStore
 from sitl.vehicle.modes import (
+    ARMING_DELAY_S,
     AUTO_YAW_RATE_MAX,
     LAND_DETECT_S,
     FlightMode,
@@ -174,6 +177,7 @@ class Autopilot:
         self._modes = make_modes()
         self._mode: FlightMode = self._modes[0]
         self.armed = False
+        self.armed_at = -math.inf
         self.land_complete = True
         self.home: GeoPoint | None = None
         self.home_enu: tuple[float, float, float] | None = None
@@ -209,6 +213,7 @@ class Autopilot:
         self.fence_breaches = 0  # FENCE_TYPE bits breached now (SYS_STATUS GEOFENCE health)
         self.missions = MissionStore()
         self._ground_time = 0.0
+        self._spool_down_s = 0.0
         self._idle = False
         self._idle_time = 0.0
         self._update_sensors(0.0)
@@ -234,7 +239,8 @@ class Autopilot:
         ph = self.phys
         self._idle = False
         if self.armed:
-            ph.motors_on = True
+            # ArduCopter holds the motor interlock off for ARMING_DELAY_SEC after arming: rotors still
+            ph.motors_on = self.time_s - self.armed_at >= ARMING_DELAY_S
             self._mode.run(self, h)
         else:
             ph.motors_on = False
@@ -328,9 +334,11 @@ class Autopilot:
         ph = self.phys
         pc = self.pc
         if roll is None or pitch is None:
+            pc.jerk_xy = self.p["PSC_JERK_XY"]
             roll, pitch = pc.update_xy(dt, self.ex, self.ey, self.evx, self.evy, ph.yaw, self.angle_max)
         else:
             pc.tpx, pc.tpy, pc.tvx, pc.tvy = self.ex, self.ey, self.evx, self.evy
+            pc.tax = pc.tay = 0.0
         thrust = pc.update_z(dt, self.ez, self.evz, ph.roll, ph.pitch)
         yaw_rate = pc.update_yaw(dt, ph.yaw, AUTO_YAW_RATE_MAX + abs(pc.yaw_rate_ff))
         self.output(roll, pitch, yaw_rate, thrust)
@@ -360,11 +368,17 @@ class Autopilot:
 
     # ------------------------------------------------------------------ detectors, failsafes
     def _land_detector(self, h: float) -> None:
-        if not self.phys.on_ground:
+        """ArduCopter's land detector: landed once the throttle has sat at its lower limit (here: a thrust
+        command at or below ground idle) with the rotors on the ground for LAND_DETECTOR_TRIGGER_SEC."""
+        ph = self.phys
+        if not ph.on_ground:
             self._ground_time = 0.0
             self.land_complete = False
             return
-        self._ground_time += h
+        if ph.thrust_cmd <= self.airframe.idle_thrust_n:
+            self._ground_time += h
+        else:
+            self._ground_time = 0.0
         if not self.armed or self._ground_time >= LAND_DETECT_S:
             self.land_complete = True
 
@@ -372,8 +386,12 @@ class Autopilot:
         if not self.armed:
             return
         if self.land_complete and self._mode.landing():
-            self._disarm()
+            # a landing mode disarms once the rotors have spooled down to ground idle (MOT_SPOOL_TIME)
+            self._spool_down_s += h
+            if self._spool_down_s >= self.p["MOT_SPOOL_TIME"]:
+                self._disarm()
             return
+        self._spool_down_s = 0.0
         delay = self.p["DISARM_DELAY"]
         if self._idle and self.land_complete and delay > 0:
             self._idle_time += h
@@ -505,6 +523,7 @@ class Autopilot:
                 self._text(_SEV_CRITICAL, reason)
                 return CommandResult(False, reason)
         self.armed = True
+        self.armed_at = self.time_s
         self._idle_time = 0.0
         if self.ekf_ok:  # ArduCopter resets home to where it arms, when it knows where that is
             self._set_home()

@@ -6,7 +6,7 @@ Each mode turns pilot sticks, GCS targets or its own plan into goals for one
 mode's speed and acceleration limits) tracked by a cascade position P -> velocity PI ->
 acceleration -> lean angles and thrust. Gains follow ArduCopter's defaults where the structure
 matches (PSC_POSXY_P 1, PSC_VELXY_P 2 / I 1, PSC_POSZ_P 1); the vertical velocity PI (4 / 2)
-stands in for PSC_VELZ_P with the PSC_ACCZ loop folded in. A position step settles in a few
+stands in for PSC_VELZ_P, followed by an acceleration PI standing in for PSC_ACCZ. A position step settles in a few
 seconds without overshoot on the default airframe.
 
 Modes and behaviour follow ArduCopter 4.5/4.6 (ardupilot.org/copter/docs/flight-modes.html):
@@ -18,15 +18,16 @@ from __future__ import annotations
 
 import abc
 import math
+from dataclasses import dataclass
 from typing import Protocol
 
 from sitl.vehicle.airframe import GRAVITY, AirframeParams
 from sitl.vehicle.physics import MulticopterPhysics
 
 __all__ = [
-    "sqrt_controller", "norm_input_dz", "pilot_climb_rate", "PositionController",
+    "sqrt_controller", "shape_vel_accel_xy", "rtl_return_alt", "stopping_point", "norm_input_dz", "pilot_climb_rate", "PositionController",
     "FlightMode", "Stabilize", "AltHold", "Guided", "Loiter", "Rtl", "Land", "Brake",
-    "GuidedSubmode", "RtlState", "make_modes", "ModeHost",
+    "GuidedSubmode", "RtlState", "StraightSCurve", "make_modes", "ModeHost",
 ]
 
 # tracking gains (ArduCopter defaults, see module docstring)
@@ -38,6 +39,10 @@ POS_Z_P = 1.0
 VEL_Z_P = 4.0
 VEL_Z_I = 2.0
 VEL_Z_IMAX = 4.0  # m/s^2
+# PSC_ACCZ_P 0.5 and _I 1.0 act in throttle per cm/s^2 / 1000: at a hover throttle of 0.39 (ArduPilot's SITL
+# quad) that is 1.26 and 2.5 /s of extra acceleration per m/s^2 of acceleration error
+ACC_Z_P = 1.26
+ACC_Z_I = 2.5
 SHAPE_P = 1.5  # target shaping: final-approach bandwidth, 1/s
 YAW_P = 3.0
 AUTO_YAW_RATE_MAX = math.radians(90.0)
@@ -45,21 +50,69 @@ BRAKE_ACCEL = 7.5  # ArduCopter BRAKE_MODE_DECEL_RATE, m/s^2
 LAND_DETECT_S = 1.0  # ArduCopter LAND_DETECTOR_TRIGGER_SEC
 FACE_TARGET_MIN_DIST = 2.0  # closer targets keep the heading (WP_YAW_BEHAVIOR 2)
 REACHED_TOL = 0.1  # m: the shaped target counts as arrived this close to its goal
+ARMING_DELAY_S = 2.0  # s, ArduCopter's ARMING_DELAY_SEC: no rotor turns this long after arming
+ATC_INPUT_TC = 0.15  # s, ArduCopter's attitude input time constant (the airframe's attitude lag here)
 
 
-def sqrt_controller(error: float, p: float, accel_max: float) -> float:
+def sqrt_controller(error: float, p: float, accel_max: float, dt: float = 0.0) -> float:
     """ArduPilot's sqrt_controller: linear ``p * error`` near zero, ``sqrt(2 a e)`` beyond.
 
     The velocity it returns lets the target stop on ``error = 0`` decelerating at ``accel_max``.
+    Given ``dt``, the correction is capped at ``|error| / dt`` so the last step cannot overshoot.
     """
     if accel_max <= 0.0:
-        return p * error
-    linear = accel_max / (p * p)
-    if error > linear:
-        return math.sqrt(2.0 * accel_max * (error - 0.5 * linear))
-    if error < -linear:
-        return -math.sqrt(2.0 * accel_max * (-error - 0.5 * linear))
-    return p * error
+        out = p * error
+    else:
+        linear = accel_max / (p * p)
+        if error > linear:
+            out = math.sqrt(2.0 * accel_max * (error - 0.5 * linear))
+        elif error < -linear:
+            out = -math.sqrt(2.0 * accel_max * (-error - 0.5 * linear))
+        else:
+            out = p * error
+    if dt > 0.0:
+        cap = abs(error) / dt
+        out = min(max(out, -cap), cap)
+    return out
+
+
+def shape_vel_accel_xy(vx: float, vy: float, tvx: float, tvy: float, tax: float, tay: float,
+                       accel_max: float, jerk_max: float, dt: float) -> tuple[float, float]:
+    """The target acceleration one step on, jerk-limited towards velocity (vx, vy) (ArduPilot shape_vel_accel_xy).
+
+    The velocity error is closed by a sqrt controller of gain jerk/accel whose output is limited to
+    ``accel_max``; while the demand is mostly along the commanded velocity, the part across it keeps at
+    least 1/sqrt(2) of the limit (ArduPilot's CORNER_ACCELERATION_RATIO), so a turn is not starved by
+    the speed change. The acceleration then moves towards that demand by at most ``jerk_max * dt``.
+    """
+    evx, evy = vx - tvx, vy - tvy
+    e = math.hypot(evx, evy)
+    if e > 0.0:
+        a = sqrt_controller(e, jerk_max / accel_max, jerk_max, dt) / e
+        atx, aty = evx * a, evy * a
+    else:
+        atx = aty = 0.0
+    speed = math.hypot(vx, vy)
+    along = (atx * vx + aty * vy) / speed if speed > 0.0 else 0.0
+    cx, cy = (atx - along * vx / speed, aty - along * vy / speed) if speed > 0.0 else (atx, aty)
+    if speed > 0.0 and along * along > cx * cx + cy * cy:
+        c = math.hypot(cx, cy)
+        corner = accel_max / math.sqrt(2.0)
+        if c > corner:
+            cx, cy, c = cx * corner / c, cy * corner / c, corner
+        room = math.sqrt(max(accel_max * accel_max - c * c, 0.0))
+        along = min(max(along, -room), room)
+        atx, aty = cx + along * vx / speed, cy + along * vy / speed
+    else:
+        a = math.hypot(atx, aty)
+        if a > accel_max:
+            atx, aty = atx * accel_max / a, aty * accel_max / a
+    dax, day = atx - tax, aty - tay
+    da = math.hypot(dax, day)
+    step = jerk_max * dt
+    if da > step:
+        dax, day = dax * step / da, day * step / da
+    return tax + dax, tay + day
 
 
 def norm_input_dz(pwm: float, dz: float) -> float:
@@ -100,18 +153,32 @@ class PositionController:
     velocity (``set_vel_xy``, ``set_climb``) reached at the given acceleration, whose target
     position keeps integrating so a zero velocity holds where it stopped. Yaw: a heading
     target, slewed by a rate feed-forward.
+
+    The horizontal target is ArduPilot's jerk-limited kinematic path (AC_PosControl's
+    input_pos_vel_accel_xy / shape_pos_vel_accel_xy): its acceleration changes by at most
+    ``jerk_xy`` (PSC_JERK_XY) per second, and a position goal is approached by a sqrt controller
+    of gain jerk/(2 accel) braking at half the acceleration limit, which is what keeps a GUIDED
+    leg from overshooting its corner. The vertical target is slew-limited in acceleration only.
     """
 
     def __init__(self, mass_kg: float, max_thrust_n: float) -> None:
         self.mass = mass_kg
         self.max_thrust = max_thrust_n
         self.tpx = self.tpy = self.tvx = self.tvy = 0.0
+        self.tax = self.tay = 0.0
+        self.jerk_xy = 5.0  # m/s^3, PSC_JERK_XY
+        self._limit = (0.0, 0.0)  # the lean-limited acceleration, when the limit holds
+        self._pos_err = self._vel_err = (0.0, 0.0)
         self.gx = self.gy = 0.0
         self.xy_pos_goal = False
+        self.xy_external = self.z_external = False  # targets set by a trajectory this step, not shaped
         self.speed_xy = 1.0
         self.accel_xy = 1.0
         self.ix = self.iy = 0.0
         self.tpz = self.tvz = 0.0
+        self._taz = 0.0
+        self.ia = 0.0
+        self._last_vz = 0.0
         self.gz = 0.0
         self.z_pos_goal = False
         self.speed_up = self.speed_dn = 1.0
@@ -126,35 +193,54 @@ class PositionController:
         """Targets at the present state, integrators cleared, holding velocity then stopping."""
         self.tpx, self.tpy, self.tpz = px, py, pz
         self.tvx, self.tvy, self.tvz = vx, vy, vz
-        self.ix = self.iy = self.iz = 0.0
+        self.tax = self.tay = 0.0
+        self._limit = (0.0, 0.0)
+        self.ix = self.iy = self.iz = self.ia = 0.0
+        self._last_vz = vz
         self.xy_pos_goal = self.z_pos_goal = False
+        self.xy_external = self.z_external = False
         self.gx = self.gy = self.gz = 0.0
         self.yaw_target = yaw
         self.yaw_rate_ff = 0.0
 
     def set_pos_xy(self, x: float, y: float, speed: float, accel: float) -> None:
         """Fly to (x, y) at up to ``speed`` m/s, ``accel`` m/s^2, and hold it."""
+        self.xy_external = False
         self.xy_pos_goal = True
         self.gx, self.gy = x, y
         self.speed_xy, self.accel_xy = speed, accel
 
     def set_vel_xy(self, vx: float, vy: float, accel: float) -> None:
         """Fly at (vx, vy), reached at ``accel`` m/s^2."""
+        self.xy_external = False
         self.xy_pos_goal = False
         self.gx, self.gy = vx, vy
         self.accel_xy = accel
 
     def set_alt(self, z: float, speed_up: float, speed_dn: float, accel: float) -> None:
         """Climb or descend to ENU height ``z`` and hold it."""
+        self.z_external = False
         self.z_pos_goal = True
         self.gz = z
         self.speed_up, self.speed_dn, self.accel_z = speed_up, speed_dn, accel
 
     def set_climb(self, vz: float, accel: float) -> None:
         """Climb at ``vz`` m/s (negative descends), reached at ``accel`` m/s^2."""
+        self.z_external = False
         self.z_pos_goal = False
         self.gz = vz
         self.accel_z = accel
+
+    def follow(self, pos: tuple[float, float, float], vel: tuple[float, float, float],
+               accel: tuple[float, float, float]) -> None:
+        """Take this step's target straight from a trajectory (AC_PosControl set_pos_vel_accel), unshaped;
+        the target's position becomes the goal held once the trajectory stops calling."""
+        self.tpx, self.tpy, self.tpz = pos
+        self.tvx, self.tvy, self.tvz = vel
+        self.tax, self.tay, self._taz = accel
+        self.gx, self.gy, self.gz = pos
+        self.xy_pos_goal = self.z_pos_goal = True
+        self.xy_external = self.z_external = True
 
     def xy_reached(self) -> bool:
         """The horizontal target has arrived at its position goal."""
@@ -166,26 +252,41 @@ class PositionController:
 
     # --- updates ---
     def _shape_xy(self, dt: float) -> tuple[float, float]:
+        if self.xy_external:
+            self.xy_external = False
+            return self.tax, self.tay
+        # move the target along with its acceleration, then reshape that acceleration (AC_PosControl order);
+        # while the lean limit holds the vehicle back, the target does not run further ahead of it
+        # (update_pos_vel_accel_xy with the limit vector)
+        ax, ay = self.tax, self.tay
+        dpx, dpy = (self.tvx + 0.5 * ax * dt) * dt, (self.tvy + 0.5 * ay * dt) * dt
+        dvx, dvy = ax * dt, ay * dt
+        lx, ly = self._limit
+        if lx or ly:
+            (pex, pey), (vex, vey) = self._pos_err, self._vel_err
+            if dpx * lx + dpy * ly > 0.0 and pex * lx + pey * ly > 0.0:
+                dpx = dpy = 0.0
+            if dvx * lx + dvy * ly > 0.0 and vex * lx + vey * ly > 0.0 and self.tvx * lx + self.tvy * ly >= 0.0:
+                dvx = dvy = 0.0
+        self.tpx += dpx
+        self.tpy += dpy
+        self.tvx += dvx
+        self.tvy += dvy
+        accel, jerk = self.accel_xy, self.jerk_xy
         if self.xy_pos_goal:
             ex, ey = self.gx - self.tpx, self.gy - self.tpy
             d = math.sqrt(ex * ex + ey * ey)
-            if d < 1e-3 and self.tvx * self.tvx + self.tvy * self.tvy < 1e-4:
-                self.tpx, self.tpy, self.tvx, self.tvy = self.gx, self.gy, 0.0, 0.0
+            if d < 1e-3 and self.tvx * self.tvx + self.tvy * self.tvy < 1e-4 and ax * ax + ay * ay < 1e-4:
+                self.tpx, self.tpy, self.tvx, self.tvy, self.tax, self.tay = self.gx, self.gy, 0.0, 0.0, 0.0, 0.0
                 return 0.0, 0.0
-            s = min(sqrt_controller(d, SHAPE_P, self.accel_xy), self.speed_xy) / d if d > 1e-9 else 0.0
+            # braking at half the acceleration limit leaves the other half for the turn onto the next leg
+            v = min(sqrt_controller(d, 0.5 * jerk / accel, 0.5 * accel, dt), self.speed_xy)
+            s = v / d if d > 1e-9 else 0.0
             vgx, vgy = ex * s, ey * s
         else:
             vgx, vgy = self.gx, self.gy
-        dvx, dvy = vgx - self.tvx, vgy - self.tvy
-        dv = math.sqrt(dvx * dvx + dvy * dvy)
-        lim = self.accel_xy * dt
-        if dv > lim:
-            dvx, dvy = dvx * lim / dv, dvy * lim / dv
-        self.tvx += dvx
-        self.tvy += dvy
-        self.tpx += self.tvx * dt
-        self.tpy += self.tvy * dt
-        return dvx / dt, dvy / dt
+        self.tax, self.tay = shape_vel_accel_xy(vgx, vgy, self.tvx, self.tvy, ax, ay, accel, jerk, dt)
+        return self.tax, self.tay
 
     def update_xy(self, dt: float, px: float, py: float, vx: float, vy: float, yaw: float,
                   angle_max: float) -> tuple[float, float]:
@@ -197,14 +298,21 @@ class PositionController:
         ay = ffy + VEL_XY_P * evy + self.iy
         amax = GRAVITY * math.tan(angle_max)
         a = math.sqrt(ax * ax + ay * ay)
+        self._pos_err = (self.tpx - px, self.tpy - py)
+        self._vel_err = (evx, evy)
         if a > amax:
             ax, ay = ax * amax / a, ay * amax / a
+            self._limit = (ax, ay)
         else:
+            self._limit = (0.0, 0.0)
             self.ix = min(max(self.ix + VEL_XY_I * evx * dt, -VEL_XY_IMAX), VEL_XY_IMAX)
             self.iy = min(max(self.iy + VEL_XY_I * evy * dt, -VEL_XY_IMAX), VEL_XY_IMAX)
         return accel_to_lean(ax, ay, yaw)
 
     def _shape_z(self, dt: float) -> float:
+        if self.z_external:
+            self.z_external = False
+            return self._taz
         if self.z_pos_goal:
             e = self.gz - self.tpz
             if abs(e) < 1e-3 and abs(self.tvz) < 1e-2:
@@ -219,13 +327,22 @@ class PositionController:
         return dv / dt
 
     def update_z(self, dt: float, pz: float, vz: float, roll: float, pitch: float) -> float:
-        """Advance the vertical target and return the thrust (N) that tracks it."""
+        """Advance the vertical target and return the thrust (N) that tracks it.
+
+        The velocity PI's acceleration demand goes through an acceleration PI on the measured climb
+        acceleration (ArduPilot's PSC_ACCZ loop), so a demand the vehicle cannot follow, such as
+        descending while standing on the ground, winds the thrust down within a fraction of a second.
+        """
         ff = self._shape_z(dt)
         ev = self.tvz + POS_Z_P * (self.tpz - pz) - vz
         az = ff + VEL_Z_P * ev + self.iz
-        thrust = self.mass * (GRAVITY + az) / max(math.cos(roll) * math.cos(pitch), 0.5)
+        a_meas = (vz - self._last_vz) / dt
+        self._last_vz = vz
+        ea = az - a_meas
+        thrust = self.mass * (GRAVITY + az + ACC_Z_P * ea + self.ia) / max(math.cos(roll) * math.cos(pitch), 0.5)
         if 0.0 < thrust < self.max_thrust:
             self.iz = min(max(self.iz + VEL_Z_I * ev * dt, -VEL_Z_IMAX), VEL_Z_IMAX)
+            self.ia = min(max(self.ia + ACC_Z_I * ea * dt, -GRAVITY), GRAVITY)
         return min(max(thrust, 0.0), self.max_thrust)
 
     def update_yaw(self, dt: float, yaw: float, rate_max: float) -> float:
@@ -275,6 +392,7 @@ class ModeHost(Protocol):
     ekf_ok: bool
     land_complete: bool
     armed: bool
+    armed_at: float
 
     @property
     def angle_max(self) -> float: ...
@@ -451,6 +569,11 @@ class Guided(FlightMode):
         self.att_yaw_rate: float | None = None
         self.att_thrust = 0.5
         self.speed_override: float | None = None
+        self.takeoff_z = 0.0
+        self.takeoff_started = 0.0
+        self.takeoff_throttle = 0.0
+        self.lifted_off = False
+        self._last_evz = 0.0
 
     def enter(self, ap: ModeHost) -> str | None:
         super().enter(ap)
@@ -474,11 +597,47 @@ class Guided(FlightMode):
         return self.speed_override if self.speed_override is not None else ap.p["WPNAV_SPEED"] * 0.01
 
     def takeoff(self, ap: ModeHost, z: float) -> None:
+        """Start ArduCopter's auto take-off to ENU height ``z``: spool up, ramp the throttle, then climb."""
         ap.reset_controller()
-        p = ap.p
         self.sub = GuidedSubmode.TAKEOFF
-        ap.pc.set_pos_xy(ap.ex, ap.ey, self.speed_xy(ap), p["WPNAV_ACCEL"] * 0.01)
-        ap.pc.set_alt(z, p["WPNAV_SPEED_UP"] * 0.01, p["WPNAV_SPEED_DN"] * 0.01, p["WPNAV_ACCEL_Z"] * 0.01)
+        self.takeoff_z = z
+        self.takeoff_started = ap.time_s
+        self.takeoff_throttle = 0.0
+        self.lifted_off = False
+        self._last_evz = ap.evz
+
+    def _run_takeoff(self, ap: ModeHost, dt: float) -> None:
+        """ArduCopter's _AutoTakeoff::run: on the ground, the rotors first spool up (MOT_SPOOL_TIME, from the
+        end of the 2 s arming delay at the earliest) with
+        the controllers relaxed; then the throttle ramps from zero over TKOFF_SLEW_TIME until lift-off is
+        detected (throttle at TKOFF_THR_MAX, at most 0.9; climbing at 10 % of WPNAV_SPEED_UP; or
+        accelerating upwards at half WPNAV_ACCEL_Z); only then does the position controller fly the climb."""
+        p = ap.p
+        climb_accel = (ap.evz - self._last_evz) / dt
+        self._last_evz = ap.evz
+        if not self.lifted_off:
+            ap.reset_controller()
+            # the spool-up starts once the arming delay has let the rotors turn
+            spool_from = max(self.takeoff_started, ap.armed_at + ARMING_DELAY_S)
+            if ap.time_s - spool_from < p["MOT_SPOOL_TIME"]:
+                ap.output(0.0, 0.0, 0.0, 0.0)
+                return
+            slew = max(p["TKOFF_SLEW_TIME"], 0.25)
+            self.takeoff_throttle = min(self.takeoff_throttle + dt / slew, 1.0)
+            ph = ap.phys
+            boost = max(math.cos(ph.roll) * math.cos(ph.pitch), 0.5)
+            ap.output(0.0, 0.0, 0.0, self.takeoff_throttle * ap.airframe.max_thrust_n / boost)
+            if (self.takeoff_throttle >= min(p["TKOFF_THR_MAX"], 0.9)
+                    or ap.evz >= 0.1 * p["WPNAV_SPEED_UP"] * 0.01
+                    or climb_accel >= 0.5 * p["WPNAV_ACCEL_Z"] * 0.01):
+                self.lifted_off = True
+                ap.pc.set_pos_xy(ap.ex, ap.ey, self.speed_xy(ap), p["WPNAV_ACCEL"] * 0.01)
+                ap.pc.set_alt(self.takeoff_z, p["WPNAV_SPEED_UP"] * 0.01, p["WPNAV_SPEED_DN"] * 0.01,
+                              p["WPNAV_ACCEL_Z"] * 0.01)
+            return
+        if ap.pc.z_reached():
+            self.sub = GuidedSubmode.POS
+        ap.output_tracking(dt)
 
     def set_position(self, ap: ModeHost, x: float, y: float, z: float, yaw: float | None) -> None:
         if self.sub == GuidedSubmode.IDLE:
@@ -532,9 +691,7 @@ class Guided(FlightMode):
         p = ap.p
         timed_out = ap.time_s - self.last_cmd_t > p["GUID_TIMEOUT"]
         if self.sub == GuidedSubmode.TAKEOFF:
-            if ap.pc.z_reached():
-                self.sub = GuidedSubmode.POS
-            ap.output_tracking(dt)
+            self._run_takeoff(ap, dt)
         elif self.sub == GuidedSubmode.VEL:
             if timed_out:
                 self._stop(ap)
@@ -618,6 +775,144 @@ class Land(FlightMode):
         return True
 
 
+_CONST, _RISE, _FALL = 0, 1, 2  # jerk held, jerk rising to its peak (raised cosine), jerk falling from it
+
+
+def _jerk_phase(kind: int, tau: float, tj: float, jm: float) -> tuple[float, float, float]:
+    """(acceleration, speed, distance) gained over ``tau`` s of one jerk phase, from zero acceleration
+    and speed: constant jerk ``jm``, or ``jm`` rising (falling) over ``tj`` as a raised cosine."""
+    if kind == _CONST or tj <= 0.0:
+        return jm * tau, 0.5 * jm * tau * tau, jm * tau ** 3 / 6.0
+    k = tj / math.pi
+    w = tau / k
+    a = 0.5 * jm * (tau - k * math.sin(w))
+    v = 0.5 * jm * (0.5 * tau * tau + k * k * (math.cos(w) - 1.0))
+    x = 0.5 * jm * (tau ** 3 / 6.0 + k * k * (k * math.sin(w) - tau))
+    if kind == _RISE:
+        return a, v, x
+    return jm * tau - a, 0.5 * jm * tau * tau - v, jm * tau ** 3 / 6.0 - x
+
+
+@dataclass(frozen=True)
+class StraightSCurve:
+    """A rest-to-rest move along a straight leg with AC_WPNav's S-curve (SCurve.cpp) speed profile.
+
+    Jerk rises to its peak ``jerk`` and falls back as a raised cosine over ``tj = pi jerk / (2 snap)``;
+    speeding up is a jerk pulse (the acceleration climbs to at most ``accel``), a spell at that
+    acceleration, and the opposite pulse; then a cruise, then the mirror image. The peak speed is the
+    largest at or below ``speed`` for which both halves fit the leg; a leg too short for the full jerk
+    pulses gets shorter ones of lower peak jerk, as ArduPilot does.
+    Built with :meth:`plan`; :meth:`at` gives the distance along, speed and acceleration at a time.
+    """
+
+    length: float
+    phases: tuple[tuple[float, int, float, float], ...]  # (duration s, kind, rise time tj s, jerk m/s^3)
+
+    @staticmethod
+    def _speed_up(v: float, accel: float, jerk: float, snap: float) -> tuple[float, float, float, float, float]:
+        """(tj, peak jerk, constant-jerk time, constant-acceleration time, distance) to reach ``v`` from rest."""
+        tj = jerk * math.pi / (2.0 * snap)
+        # each pulse lasts 2 tj + t2 and takes the acceleration to jerk * (tj + t2); the speed gained is
+        # that acceleration times (2 tj + t2 + t4)
+        if v >= 2.0 * jerk * tj * tj:
+            jm = jerk
+            x = 0.5 * (-tj + math.sqrt(tj * tj + 4.0 * v / jm))  # tj + t2 with no constant-acceleration spell
+            if jm * x > accel:
+                x = max(accel / jm, tj)
+            t2 = x - tj
+            t4 = max(v / (jm * x) - (2.0 * tj + t2), 0.0)
+        else:  # a short move: raised-cosine pulses only, peak jerk scaled down with them (jm = 2 snap tj / pi)
+            tj = (math.pi * v / (4.0 * snap)) ** (1.0 / 3.0)
+            jm = 2.0 * snap * tj / math.pi
+            t2 = t4 = 0.0
+        duration = 2.0 * (2.0 * tj + t2) + t4
+        return tj, jm, t2, t4, 0.5 * v * duration
+
+    @classmethod
+    def plan(cls, length: float, speed: float, accel: float, jerk: float, snap: float) -> StraightSCurve:
+        """The fastest such move over ``length`` m within ``speed`` m/s, ``accel`` m/s^2, ``jerk`` m/s^3
+        and ``snap`` m/s^4."""
+        if length <= 0.0 or speed <= 0.0 or accel <= 0.0 or jerk <= 0.0 or snap <= 0.0:
+            return cls(max(length, 0.0), ())
+        v = speed
+        if 2.0 * cls._speed_up(v, accel, jerk, snap)[4] > length:
+            lo, hi = 0.0, speed
+            for _ in range(60):
+                v = 0.5 * (lo + hi)
+                lo, hi = (v, hi) if 2.0 * cls._speed_up(v, accel, jerk, snap)[4] <= length else (lo, v)
+            v = lo
+        tj, jm, t2, t4, d = cls._speed_up(v, accel, jerk, snap)
+        tc = max((length - 2.0 * d) / v, 0.0) if v > 0.0 else 0.0
+
+        def pulse(sign: float) -> list[tuple[float, int, float, float]]:
+            return [(tj, _RISE, tj, sign * jm), (t2, _CONST, tj, sign * jm), (tj, _FALL, tj, sign * jm)]
+
+        phases = (pulse(1.0) + [(t4, _CONST, tj, 0.0)] + pulse(-1.0) + [(tc, _CONST, tj, 0.0)]
+                  + pulse(-1.0) + [(t4, _CONST, tj, 0.0)] + pulse(1.0))
+        return cls(length, tuple(ph for ph in phases if ph[0] > 0.0))
+
+    @property
+    def duration(self) -> float:
+        """Time the move takes, s."""
+        return sum(ph[0] for ph in self.phases)
+
+    def at(self, t: float) -> tuple[float, float, float]:
+        """(distance along, speed, acceleration) at ``t`` s after the start; at rest at the end after it."""
+        if t >= self.duration:
+            return self.length, 0.0, 0.0
+        s = v = a = 0.0
+        for d, kind, tj, jm in self.phases:
+            h = min(d, max(t, 0.0))
+            da, dv, ds = _jerk_phase(kind, h, tj, jm)
+            s += v * h + 0.5 * a * h * h + ds
+            v += a * h + dv
+            a += da
+            t -= h
+            if t <= 0.0:
+                break
+        return min(s, self.length), v, a
+
+
+RTL_ALT_MIN_M = 0.3  # ArduCopter RTL_ALT_MIN (30 cm)
+RTL_MIN_CONE_SLOPE = 0.5  # shallower cones are ignored
+
+
+def rtl_return_alt(alt: float, dist: float, rtl_alt: float, climb_min: float, cone_slope: float) -> float:
+    """Height above home RTL returns at (ArduCopter ModeRTL::compute_return_target), m.
+
+    At least RTL_ALT and the present height plus RTL_CLIMB_MIN; a cone of slope RTL_CONE_SLOPE about
+    home caps the climb near home (``dist`` from the stopping point: at most slope * dist, but never
+    below the present height plus RTL_CLIMB_MIN); it never descends to return. RTL_ALT 0 returns at
+    the present height.
+
+    Args:
+        alt: present height above home, m.
+        dist: horizontal distance from the stopping point to home, m.
+        rtl_alt: RTL_ALT, m.
+        climb_min: RTL_CLIMB_MIN, m (negative counts as 0).
+        cone_slope: RTL_CONE_SLOPE (below 0.5: no cone).
+    """
+    min_alt = max(RTL_ALT_MIN_M, alt + max(0.0, climb_min))
+    target = max(rtl_alt, min_alt)
+    if cone_slope >= RTL_MIN_CONE_SLOPE:
+        target = min(target, max(dist * cone_slope, min_alt))
+    return max(target, alt)
+
+
+def stopping_point(px: float, py: float, vx: float, vy: float, accel: float) -> tuple[float, float]:
+    """Where the horizontal controller would stop from (px, py) at (vx, vy): AC_PosControl's stopping
+    point, the inverse of a sqrt controller of gain PSC_POSXY_P braking at ``accel``."""
+    v = math.hypot(vx, vy)
+    if v < 1e-6 or accel <= 0.0:
+        return px, py
+    linear_v = accel / POS_XY_P
+    if v < linear_v:
+        d = v / POS_XY_P
+    else:
+        d = 0.5 * accel / (POS_XY_P * POS_XY_P) + v * v / (2.0 * accel)
+    return px + vx / v * d, py + vy / v * d
+
+
 class RtlState:
     """Stages of ArduCopter's RTL."""
 
@@ -629,8 +924,15 @@ class RtlState:
 
 
 class Rtl(FlightMode):
-    """Return to launch: climb to RTL_ALT (or keep a higher altitude), fly home at RTL_SPEED,
-    hover RTL_LOIT_TIME, then land and disarm (or descend to RTL_ALT_FINAL and hover)."""
+    """Return to launch (ArduCopter ModeRTL): climb to the return altitude (:func:`rtl_return_alt`:
+    RTL_ALT, capped by RTL_CONE_SLOPE near home) above the stopping point, fly home at RTL_SPEED,
+    hover RTL_LOIT_TIME, then land and disarm (or descend to RTL_ALT_FINAL and hover).
+
+    The climb and the return are waypoint legs, each a :class:`StraightSCurve` (WPNAV_JERK, WPNAV_ACCEL
+    or WPNAV_ACCEL_Z, the leg's speed) that the position controller follows. The climb leg, with the
+    return leg queued behind it, ends when its curve does (a fast waypoint); the return leg ends when its
+    curve has stopped over home and the vehicle is within WPNAV_RADIUS of it.
+    """
 
     number, name, requires_position = 6, "RTL", True
 
@@ -638,6 +940,13 @@ class Rtl(FlightMode):
         self.state = RtlState.CLIMB
         self.return_z = 0.0
         self.loiter_start = 0.0
+        self.leg_start = 0.0
+        self.leg_origin = (0.0, 0.0, 0.0)
+        self.leg_dir = (0.0, 0.0, 0.0)
+        self.leg = StraightSCurve(0.0, ())
+        self.leg_t = 0.0
+        self.track_scale = 1.0
+        self.track_tc = 1.0
 
     def enter(self, ap: ModeHost) -> str | None:
         if ap.home_enu is None:
@@ -648,21 +957,65 @@ class Rtl(FlightMode):
             return None
         super().enter(ap)
         p = ap.p
-        alt = ap.alt_rel()
-        rtl_alt = p["RTL_ALT"] * 0.01 if p["RTL_ALT"] > 0 else alt  # RTL_ALT 0: return at current altitude
-        # never descend to return: a vehicle above RTL_ALT keeps its altitude
-        self.return_z = ap.home_enu[2] + max(rtl_alt, alt + p["RTL_CLIMB_MIN"] * 0.01)
+        sx, sy = stopping_point(ap.ex, ap.ey, ap.evx, ap.evy, p["WPNAV_ACCEL"] * 0.01)
+        dist = math.hypot(sx - ap.home_enu[0], sy - ap.home_enu[1])
+        self.return_z = ap.home_enu[2] + rtl_return_alt(ap.alt_rel(), dist, p["RTL_ALT"] * 0.01,
+                                                        p["RTL_CLIMB_MIN"] * 0.01, p["RTL_CONE_SLOPE"])
         if ap.land_complete:
             self.state = RtlState.LAND
             return None
         self.state = RtlState.CLIMB
-        ap.pc.set_vel_xy(0.0, 0.0, p["WPNAV_ACCEL"] * 0.01)
-        ap.pc.set_alt(self.return_z, p["WPNAV_SPEED_UP"] * 0.01, p["WPNAV_SPEED_DN"] * 0.01,
-                      p["WPNAV_ACCEL_Z"] * 0.01)
+        # the waypoint controller starts at the stopping point (wp_and_spline_init)
+        pc = ap.pc
+        pc.tpx, pc.tpy, pc.tvx, pc.tvy, pc.tax, pc.tay = sx, sy, 0.0, 0.0, 0.0, 0.0
+        self._start_leg(ap, (sx, sy, ap.ez), (sx, sy, self.return_z))
         return None
 
     def speed_xy(self, ap: ModeHost) -> float:
         return (ap.p["RTL_SPEED"] or ap.p["WPNAV_SPEED"]) * 0.01
+
+    def _start_leg(self, ap: ModeHost, origin: tuple[float, float, float],
+                   destination: tuple[float, float, float]) -> None:
+        """Plan a straight S-curve leg; speed and acceleration are the horizontal or vertical limits,
+        whichever the leg's direction meets first (AC_WPNav's kinematic_limit)."""
+        p = ap.p
+        d = [b - a for a, b in zip(origin, destination)]
+        length = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        self.leg_origin = origin
+        self.leg_dir = tuple(c / length for c in d) if length > 1e-9 else (0.0, 0.0, 0.0)
+        h = math.hypot(self.leg_dir[0], self.leg_dir[1])
+        up = self.leg_dir[2]
+        v_z = p["WPNAV_SPEED_UP"] * 0.01 if up > 0.0 else p["WPNAV_SPEED_DN"] * 0.01
+        speed = _kinematic_limit(h, up, self.speed_xy(ap), v_z)
+        accel = _kinematic_limit(h, up, p["WPNAV_ACCEL"] * 0.01, p["WPNAV_ACCEL_Z"] * 0.01)
+        jerk = p["WPNAV_JERK"]
+        # AC_WPNav::calc_scurve_jerk_and_snap: snap from the attitude loop's time constant, halved
+        self.leg = StraightSCurve.plan(length, speed, accel, jerk, 0.5 * jerk * math.pi / (2.0 * ATC_INPUT_TC))
+        self.leg_t = 0.0
+        self.track_scale = 1.0
+        self.track_tc = p["WPNAV_ACCEL"] * 0.01 / jerk if jerk > 0.0 else 1.0
+
+    def _follow_leg(self, ap: ModeHost, dt: float) -> bool:
+        """Put this step's point of the leg into the position controller; True once the curve has ended.
+
+        The curve's clock runs slower while the vehicle lags its target (AC_WPNav's track time scale:
+        the vehicle's speed along the track, less the position error's share, over the target's speed,
+        filtered with a time constant of WPNAV_ACCEL / WPNAV_JERK), so a vehicle still carrying speed
+        the other way first stops, then follows.
+        """
+        o, u = self.leg_origin, self.leg_dir
+        s, v, _ = self.leg.at(self.leg_t)
+        scale = 1.0
+        if v > 1e-6:
+            err = sum((o[i] + u[i] * s - e) * u[i] for i, e in enumerate((ap.ex, ap.ey, ap.ez)))
+            along = ap.evx * u[0] + ap.evy * u[1] + ap.evz * u[2]
+            scale = min(max(0.05 + (along - POS_XY_P * err) / v, 0.0), 1.0)
+        self.track_scale += (scale - self.track_scale) * min(dt / self.track_tc, 1.0)
+        self.leg_t += dt * self.track_scale
+        s, v, a = self.leg.at(self.leg_t)
+        ap.pc.follow(tuple(o[i] + u[i] * s for i in range(3)), tuple(u[i] * v for i in range(3)),
+                     tuple(u[i] * a for i in range(3)))
+        return self.leg_t >= self.leg.duration
 
     def run(self, ap: ModeHost, dt: float) -> None:
         if ap.land_complete:
@@ -671,12 +1024,15 @@ class Rtl(FlightMode):
         p = ap.p
         pc = ap.pc
         hx, hy, hz = ap.home_enu
-        if self.state == RtlState.CLIMB and pc.z_reached():
-            self.state = RtlState.RETURN
-            pc.set_pos_xy(hx, hy, self.speed_xy(ap), p["WPNAV_ACCEL"] * 0.01)
-        elif self.state == RtlState.RETURN and pc.xy_reached():
-            self.state = RtlState.LOITER
-            self.loiter_start = ap.time_s
+        if self.state == RtlState.CLIMB:
+            if self._follow_leg(ap, dt):
+                self.state = RtlState.RETURN
+                self._start_leg(ap, (pc.tpx, pc.tpy, self.return_z), (hx, hy, self.return_z))
+        if self.state == RtlState.RETURN:
+            ended = self._follow_leg(ap, dt)
+            if ended and math.hypot(ap.ex - hx, ap.ey - hy) <= p["WPNAV_RADIUS"] * 0.01:
+                self.state = RtlState.LOITER
+                self.loiter_start = ap.time_s
         elif self.state == RtlState.LOITER and ap.time_s - self.loiter_start >= p["RTL_LOIT_TIME"] * 0.001:
             final = p["RTL_ALT_FINAL"] * 0.01
             if final > 0.0:
@@ -692,6 +1048,16 @@ class Rtl(FlightMode):
 
     def landing(self) -> bool:
         return self.state == RtlState.LAND
+
+
+def _kinematic_limit(h: float, up: float, max_xy: float, max_z: float) -> float:
+    """The largest speed (or acceleration) along a unit direction with horizontal part ``h`` and
+    vertical part ``up`` that keeps within ``max_xy`` across and ``max_z`` up or down."""
+    if h < 1e-9:
+        return max_z
+    if abs(up) < 1e-9:
+        return max_xy
+    return min(max_xy / h, max_z / abs(up))
 
 
 def make_modes() -> dict[int, FlightMode]:

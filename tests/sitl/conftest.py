@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from chaser_bt.geo import GeoPoint
+from sitl.vehicle.airframe import AirframeParams
 from sitl.vehicle.autopilot import Autopilot
 from sitl.vehicle.physics import WindParams
 from sitl.world.scenario import BootParams, Fault, Scenario
@@ -37,9 +38,10 @@ def make_ap() -> Callable[..., Autopilot]:
 
     def make(params: dict[str, float] | None = None, wind: WindParams | None = None,
              boot: BootParams = FAST_BOOT, faults: tuple[Fault, ...] = (), seed: int = 0,
-             heading_deg: float = 0.0) -> Autopilot:
+             heading_deg: float = 0.0, airframe: AirframeParams | None = None) -> Autopilot:
         sc = Scenario(name="test", home=FIELD, home_heading_deg=heading_deg,
-                      wind=wind or WindParams(), params=params or {}, boot=boot, faults=faults)
+                      wind=wind or WindParams(), params=params or {}, boot=boot, faults=faults,
+                      airframe=airframe or AirframeParams())
         return Autopilot(sc, np.random.default_rng(seed))
 
     return make

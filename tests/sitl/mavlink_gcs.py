@@ -121,5 +121,5 @@ def airborne_gcs(alt_m: float = 10.0, seed: int = 0, **overrides) -> PipeGcs:
     assert gcs.set_mode(4).result == mav.MAV_RESULT_ACCEPTED
     assert gcs.command_ack(mav.MAV_CMD_COMPONENT_ARM_DISARM, 1)[0].result == mav.MAV_RESULT_ACCEPTED
     assert gcs.command_ack(mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, alt_m)[0].result == mav.MAV_RESULT_ACCEPTED
-    gcs.run(alt_m / 2.5 + 6.0)
+    gcs.run(alt_m / 2.5 + 9.0)  # + ArduCopter's 2 s arming delay, spool-up and throttle ramp
     return gcs

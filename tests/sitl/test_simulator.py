@@ -36,7 +36,7 @@ def _scripted_session(seed: int) -> bytes:
 
 def test_same_scenario_and_seed_give_byte_identical_output():
     first = _scripted_session(7)
-    assert len(first) > 50_000
+    assert len(first) > 40_000  # a substantial session (MAVLink 2 trims zero bytes: a grounded vehicle sends fewer)
     assert _scripted_session(7) == first
 
 

@@ -80,6 +80,7 @@ def test_non_finite_values_are_rejected():
 def test_a_changed_parameter_changes_the_behaviour(airborne, run_for):
     ap = airborne(alt=10.0)
     assert ap.params.set("RTL_ALT", 2500)
+    assert ap.params.set("RTL_CONE_SLOPE", 0)  # over home the cone would hold it at 10 m (as ArduCopter)
     ap.request_mode(6)
     run_for(ap, 12.0)
     assert ap.truth.pos_enu[2] == pytest.approx(25.0, abs=0.3)

@@ -1,0 +1,149 @@
+"""The built-in autopilot against ArduCopter's own behaviour, each against an answer worked by hand
+from ArduPilot's formulas (RTL's return altitude, the S-curve, the take-off ramp, the land detector)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from sitl.vehicle.airframe import AirframeParams
+from sitl.vehicle.modes import PositionController, StraightSCurve, rtl_return_alt, stopping_point
+from sitl.vehicle.physics import WindParams
+
+GUIDED, RTL, LAND = 4, 6, 9
+
+
+# ---------------------------------------------------------------- RTL return altitude (ModeRTL::compute_return_target)
+@pytest.mark.parametrize(("alt", "dist", "rtl_alt", "climb_min", "slope", "expected"), [
+    (10.0, 50.0, 15.0, 0.0, 3.0, 15.0),   # far out: the cone (150 m) is above RTL_ALT, RTL_ALT governs
+    (10.0, 4.0, 15.0, 0.0, 3.0, 12.0),    # 4 m out: capped at 3 * 4 = 12 m
+    (10.0, 2.0, 15.0, 0.0, 3.0, 10.0),    # 2 m out: the cone (6 m) is below us, no climb, no descent
+    (10.0, 2.0, 15.0, 2.0, 3.0, 12.0),    # RTL_CLIMB_MIN 2 m still climbs 2 m inside the cone
+    (10.0, 4.0, 15.0, 0.0, 0.4, 15.0),    # slopes under 0.5 are ignored
+    (20.0, 50.0, 15.0, 0.0, 3.0, 20.0),   # above RTL_ALT: returns at its own height
+    (0.1, 0.0, 0.0, 0.0, 3.0, 0.3),       # never below RTL_ALT_MIN (30 cm)
+])
+def test_rtl_return_altitude_follows_arducopters_cone(alt, dist, rtl_alt, climb_min, slope, expected):
+    assert rtl_return_alt(alt, dist, rtl_alt, climb_min, slope) == pytest.approx(expected)
+
+
+def test_stopping_point_is_the_inverse_sqrt_controller():
+    # PSC_POSXY_P 1, accel 2.5: below 2.5 m/s linear (d = v / P); above, 0.5 a / P^2 + v^2 / (2 a)
+    assert stopping_point(0.0, 0.0, 2.0, 0.0, 2.5) == pytest.approx((2.0, 0.0))
+    assert stopping_point(0.0, 0.0, 0.0, -5.0, 2.5) == pytest.approx((0.0, -(1.25 + 5.0)))
+
+
+def test_rtl_near_home_climbs_only_to_the_cone(airborne, run_for):
+    ap = airborne(alt=10.0)
+    ap.set_position_target([4.0, 0.0, 10.0])
+    run_for(ap, 15.0)
+    assert ap.request_mode(RTL).accepted
+    heights = []
+    run_for(ap, 12.0, each=lambda a: heights.append(a.truth.pos_enu[2]))
+    # 3 * 4 m, not RTL_ALT's 15 m (within the estimate's ~0.2 m error in height and its position error)
+    assert max(heights) == pytest.approx(12.0, abs=0.5)
+
+
+# ---------------------------------------------------------------- the S-curve of a waypoint leg
+def test_s_curve_leg_matches_the_hand_worked_profile():
+    # jerk 1, snap pi: raised-cosine rise tj = pi * 1 / (2 pi) = 0.5 s; accel 2.5 = 1 * (tj + t2): t2 = 2 s;
+    # a pulse (3 s) gains 2.5 * 3 / 2 = 3.75 m/s, two give 7.5, so 1 s at 2.5 m/s^2 makes 10 m/s:
+    # speeding up takes 7 s over 35 m, slowing down the same, 30 m of cruise at 10 m/s: 17 s in all
+    leg = StraightSCurve.plan(100.0, 10.0, 2.5, 1.0, math.pi)
+    assert leg.duration == pytest.approx(17.0)
+    assert leg.at(3.5) == pytest.approx((leg.at(3.5)[0], 5.0, 2.5))  # 3.75 + 0.5 s at 2.5
+    assert leg.at(7.0)[:2] == pytest.approx((35.0, 10.0))
+    assert leg.at(8.5) == pytest.approx((50.0, 10.0, 0.0), abs=1e-9)
+    assert leg.at(17.0) == (100.0, 0.0, 0.0)
+
+
+def test_a_short_s_curve_leg_shortens_its_jerk_pulses():
+    # snap pi/4: the full rise would be tj = 2 s, too long for 4 m; raised-cosine pulses only, with peak
+    # jerk 2 snap tj / pi = tj / 2, so two pulses of 2 tj reach v = tj^3 over 2 v tj = 2 tj^4 m each way:
+    # 4 m = 4 tj^4 gives tj = 1 s, a peak of 1 m/s at 4 s, 8 s in all
+    leg = StraightSCurve.plan(4.0, 10.0, 2.5, 1.0, math.pi / 4.0)
+    assert leg.duration == pytest.approx(8.0)
+    assert leg.at(4.0)[:2] == pytest.approx((2.0, 1.0))
+
+
+# ---------------------------------------------------------------- GUIDED position shaping (shape_pos_vel_accel_xy)
+def test_position_target_speeds_up_at_the_jerk_limit_and_stops_on_the_goal():
+    pc = PositionController(8.0, 157.0)
+    pc.reset(0.0, 0.0, 20.0, 0.0, 0.0, 0.0, 0.0)
+    pc.set_pos_xy(100.0, 0.0, 10.0, 2.5)
+    dt, t = 0.02, 0.0
+    prev_a, at_1s, top, furthest = 0.0, None, 0.0, 0.0
+    while t < 30.0 - 1e-9:
+        pc.update_xy(dt, pc.tpx, pc.tpy, pc.tvx, pc.tvy, 0.0, math.radians(30.0))  # a vehicle right on target
+        t += dt
+        assert abs(pc.tax - prev_a) <= 5.0 * dt + 1e-9  # PSC_JERK_XY 5 m/s^3
+        assert abs(pc.tax) <= 2.5 + 1e-9  # WPNAV_ACCEL
+        prev_a, top, furthest = pc.tax, max(top, pc.tvx), max(furthest, pc.tpx)
+        if at_1s is None and t >= 1.0 - 1e-9:
+            at_1s = (pc.tpx, pc.tvx)
+    # 0.5 s of 5 m/s^3 to 2.5 m/s^2 (0.625 m/s, 5 * 0.5^3 / 6 = 0.104 m), then 0.5 s at 2.5 m/s^2:
+    # 1.875 m/s and 0.104 + 0.3125 + 0.3125 = 0.729 m after 1 s, less the one 20 ms step by which the
+    # target moves before its acceleration is reshaped (ArduPilot's order too): 0.05 m/s, 0.04 m
+    assert at_1s == pytest.approx((0.729, 1.875), abs=0.06)
+    assert top == pytest.approx(10.0, abs=0.01)
+    assert furthest < 100.3  # braking at half WPNAV_ACCEL leaves room: a few tens of cm past at most
+    assert pc.tpx == pytest.approx(100.0, abs=0.01) and pc.tvx == pytest.approx(0.0, abs=0.01)
+
+
+def test_the_target_waits_for_a_vehicle_held_back_by_its_lean_limit(make_ap, run_for):
+    # ArduPilot's SITL quad's drag on 8 kg: at 30 deg, 0.234 v^2 + 1.37 v = 8 g tan 30 = 45.3 N: 11.29 m/s
+    # through the air, 8.29 m/s over the ground into 3 m/s
+    quad = AirframeParams(max_thrust_ratio=2.564, drag_lin_h=1.37, drag_quad_h=0.234)
+    ap = make_ap(wind=WindParams(speed_mps=3.0, direction_deg=270.0), airframe=quad)
+    run_for(ap, 4.0)
+    ap.request_mode(GUIDED)
+    ap.request_arm(True)
+    ap.request_takeoff(20.0)
+    run_for(ap, 16.0)
+    ap.set_position_target([-100.0, 0.0, 20.0])  # west, into the wind
+    lead, speed = [], []
+    run_for(ap, 14.0, each=lambda a: (lead.append(math.hypot(a.pc.tpx - a.ex, a.pc.tpy - a.ey)),
+                                      speed.append(-a.truth.vel_enu[0])))
+    assert max(speed) == pytest.approx(8.29, abs=0.3)
+    assert max(lead) < 3.0  # without the limit vector the target ran ~1.7 m/s ahead: > 10 m
+
+
+# ---------------------------------------------------------------- take-off (_AutoTakeoff::run) and land detector
+def test_takeoff_waits_out_the_arming_delay_spools_up_then_ramps_the_throttle(make_ap, run_for):
+    # the rotors stay still for ArduCopter's 2 s arming delay, spool up for MOT_SPOOL_TIME 0.5 s, then
+    # the throttle climbs 1 / TKOFF_SLEW_TIME = 0.5 per s from zero; the default airframe hovers at 0.5
+    # throttle, so a take-off commanded on arming lifts 2 + 0.5 + 1.0 = 3.5 s after it, one commanded
+    # 3 s after arming (delay over) 0.5 + 1.0 = 1.5 s after the command
+    for wait, expected in ((0.0, 3.5), (3.0, 1.5)):
+        ap = make_ap()
+        run_for(ap, 4.0)
+        ap.request_mode(GUIDED)
+        ap.request_arm(True)
+        run_for(ap, wait)
+        assert ap.request_takeoff(20.0).accepted
+        heights = []
+        run_for(ap, 5.0, each=lambda a: heights.append(a.truth.pos_enu[2]))
+        first_up = next(i for i, h in enumerate(heights) if h > 0.0) * 0.02
+        assert first_up == pytest.approx(expected, abs=0.1)
+
+
+def test_land_disarms_one_second_at_the_throttle_floor_and_a_spool_down_later(airborne, run_for):
+    # LAND_DETECTOR_TRIGGER_SEC 1 s with the thrust at its lower limit on the ground, then the rotors
+    # spool down for MOT_SPOOL_TIME 0.5 s before the disarm
+    ap = airborne(alt=3.0)
+    assert ap.request_mode(LAND).accepted
+    floor, disarmed, t = None, None, 0.0
+    while t < 30.0 and disarmed is None:
+        ap.step(0.02)
+        t += 0.02
+        at_floor = ap.phys.on_ground and ap.phys.thrust_cmd <= ap.airframe.idle_thrust_n
+        if at_floor and floor is None:
+            floor = t
+        elif not at_floor and ap.armed:
+            floor = None
+        if not ap.armed:
+            disarmed = t
+    assert floor is not None and disarmed is not None
+    assert disarmed - floor == pytest.approx(1.5, abs=0.05)
