@@ -345,3 +345,14 @@ def test_shipped_onnx_copies_carry_the_weights_config_and_the_detector_runs_them
             "print(d.backend, d.refiner.backend, 'torch' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=Path(__file__).parents[2])
     assert out.stdout.split() == ["onnx-int8", "onnx", "False"], out.stderr
+
+
+def test_network_input_is_the_image_as_rgb_planes_in_zero_to_one():
+    from chaser_bt.vision.detector.inference import network_input
+
+    img = np.random.default_rng(5).integers(0, 256, (64, 96, 3), dtype=np.uint8)
+    want = (img[..., ::-1].transpose(2, 0, 1).astype(np.float32) / np.float32(255.0))[None]
+    got = network_input(img)
+    assert got.dtype == np.float32 and got.shape == (1, 3, 64, 96) and got.flags.c_contiguous
+    assert np.array_equal(got, want)
+    assert got[0, 0, 3, 7] == np.float32(img[3, 7, 2]) / np.float32(255.0)  # plane 0 is red (BGR's last)
