@@ -332,7 +332,8 @@ def test_shipped_onnx_copies_carry_the_weights_config_and_the_detector_runs_them
 
     import onnxruntime
 
-    from chaser_bt.vision.detector.inference import SHIPPED_WEIGHTS, int8_path, read_metadata
+    from chaser_bt.vision.detector.inference import SHIPPED_WEIGHTS, int8_path
+    from chaser_bt.vision.detector.onnx_copy import read_metadata
 
     for weights in SHIPPED_WEIGHTS.values():
         blob = torch.load(weights, map_location="cpu", weights_only=False)

@@ -11,14 +11,13 @@ preferred over the float one by "auto" under the same rule.
 
 With onnxruntime the detector runs without torch (whose import costs seconds at start-up): the ONNX
 copies carry what the network is (class names, stride, IoU-aware scores) in their metadata
-(:func:`write_metadata`), the head is decoded in numpy, and the box refiner runs its own ONNX copy.
+(:func:`~chaser_bt.vision.detector.onnx_copy.write_metadata`), the head is decoded in numpy, and the box refiner runs its own ONNX copy.
 Torch is imported only for the torch backend or a copy without that metadata.
 """
 
 from __future__ import annotations
 
 import functools
-import json
 import warnings
 from pathlib import Path
 from typing import Any
@@ -27,6 +26,7 @@ import numpy as np
 
 from chaser_bt.vision.detection import Detection
 from chaser_bt.vision.detector.augment import letterbox
+from chaser_bt.vision.detector.onnx_copy import METADATA_KEY, fresh, have_onnxruntime, ort_session, read_metadata, write_metadata
 from chaser_bt.vision.detector.refine import BoxRefiner, refiner_path
 
 __all__ = ["Detection", "Detector", "DEFAULT_WEIGHTS", "DEFAULT_ONNX", "BACKENDS", "SHIPPED_WEIGHTS", "shipped_detector", "load_model", "nms",
@@ -40,8 +40,6 @@ SHIPPED_WEIGHTS: dict[str, Path] = {"tiny_yolo": DEFAULT_WEIGHTS, "person_yolo":
 _MAX_NMS = 300
 #: What ``Detector(backend=...)`` accepts.
 BACKENDS = ("auto", "torch", "onnx", "onnx-int8")
-#: The ONNX metadata key (``metadata_props``) under which our copies keep a JSON dict of what they are.
-METADATA_KEY = "chaser_bt"
 
 
 def int8_path(weights: str | Path) -> Path:
@@ -58,11 +56,6 @@ def network_input(letterboxed_bgr: np.ndarray) -> np.ndarray:
     for c in range(3):
         np.divide(letterboxed_bgr[..., 2 - c], np.float32(255.0), out=out[0, c], dtype=np.float32)
     return out
-
-
-def _fresh(copy: Path, weights: Path) -> bool:
-    """``copy`` exists and is not older than ``weights`` (1 s of slack for file systems and checkouts)."""
-    return copy.exists() and weights.exists() and copy.stat().st_mtime >= weights.stat().st_mtime - 1.0
 
 
 def _load_blob(path: str | Path) -> dict:
@@ -90,25 +83,6 @@ def _model(blob: dict):
 def _detector_metadata(blob: dict) -> dict:
     """What an ONNX copy of the detector saved as ``blob`` carries in its metadata."""
     return {"config": dict(blob["config"]), "obj_iou": float(blob.get("obj_iou", 0.0))}
-
-
-def write_metadata(onnx_path: str | Path, meta: dict) -> None:
-    """Store ``meta`` (JSON) in the ONNX file's metadata under :data:`METADATA_KEY` (needs the onnx package)."""
-    import onnx
-
-    model = onnx.load(str(onnx_path))
-    kept = [(p.key, p.value) for p in model.metadata_props if p.key != METADATA_KEY]
-    del model.metadata_props[:]
-    for key, value in kept + [(METADATA_KEY, json.dumps(meta, sort_keys=True))]:
-        entry = model.metadata_props.add()
-        entry.key, entry.value = key, value
-    onnx.save(model, str(onnx_path))
-
-
-def read_metadata(session: Any) -> dict:
-    """The dict :func:`write_metadata` stored in the model an onnxruntime ``session`` runs ({} if none)."""
-    text = session.get_modelmeta().custom_metadata_map.get(METADATA_KEY)
-    return json.loads(text) if text else {}
 
 
 def _sigmoid(x: np.ndarray) -> np.ndarray:
@@ -185,15 +159,15 @@ class Detector:
         session = None
         if backend == "auto":
             backend = "torch"
-            if _have_onnxruntime():
-                if onnx_path is None and _fresh(int8_path(weights), weights):
+            if have_onnxruntime():
+                if onnx_path is None and fresh(int8_path(weights), weights):
                     try:
-                        session, backend, onnx_path = _session(int8_path(weights), threads), "onnx-int8", int8_path(weights)
+                        session, backend, onnx_path = ort_session(int8_path(weights), threads), "onnx-int8", int8_path(weights)
                     except ValueError as exc:
                         warnings.warn(f"{exc}; running the float model", RuntimeWarning, stacklevel=2)
                 if session is None:
                     onnx_path = weights.with_suffix(".onnx") if onnx_path is None else Path(onnx_path)
-                    backend = "onnx" if _fresh(onnx_path, weights) else "torch"
+                    backend = "onnx" if fresh(onnx_path, weights) else "torch"
         elif onnx_path is None:
             onnx_path = int8_path(weights) if backend == "onnx-int8" else weights.with_suffix(".onnx")
         #: "torch", "onnx" or "onnx-int8": what runs the network.
@@ -203,7 +177,7 @@ class Detector:
         self.weights = weights
         self._threads = threads
         if backend != "torch" and session is None:
-            session = _session(self.onnx_path, threads)
+            session = ort_session(self.onnx_path, threads)
         self._session = session
         meta = read_metadata(session) if session is not None else {}
         if "config" not in meta:  # the torch backend, or a copy exported before copies carried their metadata
@@ -278,29 +252,6 @@ def shipped_detector(name: str, **kwargs) -> Detector:
     if name not in SHIPPED_WEIGHTS:
         raise ValueError(f"unknown detector {name!r}; shipped: {sorted(SHIPPED_WEIGHTS)}")
     return Detector(SHIPPED_WEIGHTS[name], **kwargs)
-
-
-def _session(path: Path, threads: int):
-    """An onnxruntime CPU session of ``path``; FileNotFoundError or ValueError naming the file when it cannot load."""
-    import onnxruntime
-
-    if not path.is_file():
-        raise FileNotFoundError(f"detector ONNX model not found: {path}")
-    opts = onnxruntime.SessionOptions()
-    opts.intra_op_num_threads = threads
-    opts.inter_op_num_threads = 1
-    try:
-        return onnxruntime.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
-    except Exception as exc:  # onnxruntime raises its own classes (InvalidProtobuf, Fail, ...)
-        raise ValueError(f"{path}: onnxruntime cannot load it ({type(exc).__name__}: {str(exc).strip()[:200]})") from None
-
-
-def _have_onnxruntime() -> bool:
-    try:
-        import onnxruntime  # noqa: F401
-    except ImportError:
-        return False
-    return True
 
 
 def export_onnx(weights: str | Path, out_path: str | Path, image_size: int = 416) -> Path:

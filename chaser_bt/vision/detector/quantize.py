@@ -25,7 +25,8 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from chaser_bt.vision.detector.augment import letterbox
-from chaser_bt.vision.detector.inference import METADATA_KEY, int8_path, network_input, write_metadata
+from chaser_bt.vision.detector.inference import int8_path, network_input
+from chaser_bt.vision.detector.onnx_copy import METADATA_KEY, write_metadata
 
 __all__ = ["DEFAULT_EXCLUDE", "CALIBRATION_METHODS", "FrameReader", "int8_path", "quantize_detector", "read_frames"]
 

@@ -25,10 +25,11 @@ import cv2
 import numpy as np
 
 from chaser_bt.vision.detection import Detection
+from chaser_bt.vision.detector.onnx_copy import fresh, have_onnxruntime, ort_session, read_metadata, write_metadata
 
 __all__ = ["RefinerConfig", "BoxRefinerNet", "BoxRefiner", "refiner_path", "refiner_onnx_path", "crop_window", "jitter_boxes",
-           "make_refiner_set", "train_refiner"]
-_TORCH_NAMES = ("BoxRefinerNet", "train_refiner", "load_refiner_net", "export_refiner_onnx")
+           "make_refiner_set", "train_refiner", "load_refiner_net", "export_refiner_onnx"]
+_TORCH_NAMES = ("BoxRefinerNet", "train_refiner")
 
 
 def __getattr__(name: str) -> Any:  # the torch half, imported when asked for (PEP 562)
@@ -111,13 +112,11 @@ class BoxRefiner:
         self.max_shift = max_shift
         self._session = self._net = None
         onnx = refiner_onnx_path(p)
-        if backend == "onnx" or (backend == "auto" and _fresh(onnx, p)):
-            from chaser_bt.vision.detector.inference import _have_onnxruntime, _session, read_metadata
-
+        if backend == "onnx" or (backend == "auto" and fresh(onnx, p)):
             try:
-                if not _have_onnxruntime():
+                if not have_onnxruntime():
                     raise ValueError("onnxruntime is not installed")
-                session = _session(onnx, threads)
+                session = ort_session(onnx, threads)
                 meta = read_metadata(session)
                 if "refiner_config" not in meta:
                     raise ValueError(f"{onnx}: no refiner_config in its metadata (export it with export_refiner_onnx)")
@@ -127,8 +126,6 @@ class BoxRefiner:
                     raise
                 warnings.warn(f"{exc}; running the refiner in torch", RuntimeWarning, stacklevel=2)
         if self._session is None:
-            from chaser_bt.vision.detector.refine_net import load_refiner_net
-
             self._net = load_refiner_net(p)
             self.config = self._net.config
         #: "onnx" or "torch": what runs the network.
@@ -138,7 +135,7 @@ class BoxRefiner:
     def net(self):
         """The torch network (loaded on first use when onnxruntime runs the refiner)."""
         if self._net is None:
-            raise AttributeError("this refiner runs its ONNX copy; load the torch network with refine_net.load_refiner_net")
+            raise AttributeError("this refiner runs its ONNX copy; load the torch network with load_refiner_net")
         return self._net
 
     def _run(self, crops: np.ndarray, given: np.ndarray) -> np.ndarray:
@@ -206,6 +203,28 @@ def make_refiner_set(images: Sequence[np.ndarray], boxes: Sequence[np.ndarray], 
     return np.concatenate(crops), np.concatenate(given).astype(np.float32), np.concatenate(targets).astype(np.float32)
 
 
-def _fresh(copy: Path, weights: Path) -> bool:
-    """``copy`` exists and is not older than ``weights`` (1 s of slack for file systems and checkouts)."""
-    return copy.exists() and weights.exists() and copy.stat().st_mtime >= weights.stat().st_mtime - 1.0
+
+def load_refiner_net(weights: str | Path):
+    """The torch refiner network (:class:`~chaser_bt.vision.detector.refine_net.BoxRefinerNet`) saved by
+    :func:`train_refiner` at ``weights``, in eval mode, float32."""
+    import torch
+
+    from chaser_bt.vision.detector.refine_net import BoxRefinerNet
+
+    blob = torch.load(Path(weights), map_location="cpu", weights_only=False)
+    net = BoxRefinerNet(RefinerConfig.from_dict(blob["config"]))
+    net.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in blob["state_dict"].items()})
+    return net.eval()
+
+
+def export_refiner_onnx(weights: str | Path, out_path: str | Path | None = None) -> Path:
+    """Export the refiner at ``weights`` to ONNX (default: beside it, :func:`refiner_onnx_path`), inputs
+    ``crops`` (B, 3, P, P) RGB in [0, 1] and ``boxes`` (B, 4), output ``refined`` (B, 4), with its crop
+    geometry in the file's metadata so onnxruntime runs it without torch (needs torch and the onnx package)."""
+    from chaser_bt.vision.detector.refine_net import export_network_onnx
+
+    net = load_refiner_net(weights)
+    out = Path(out_path) if out_path is not None else refiner_onnx_path(weights)
+    export_network_onnx(net, out)
+    write_metadata(out, {"refiner_config": net.config.to_dict()})
+    return out

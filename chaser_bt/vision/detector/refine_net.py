@@ -1,5 +1,6 @@
-"""The box refiner's network, its training and its ONNX export (torch): what runs the refiner at
-inference without torch is :mod:`chaser_bt.vision.detector.refine`.
+"""The box refiner's network, its training and its ONNX export (torch). The refiner itself, its
+configuration and what runs it at inference without torch are :mod:`chaser_bt.vision.detector.refine`;
+this module imports nothing of it (a configuration is any object with ``input_px``, ``widths`` and ``to_dict()``).
 """
 
 from __future__ import annotations
@@ -13,16 +14,15 @@ import torch
 from torch import nn
 
 from chaser_bt.vision.detector.model import conv_bn_act
-from chaser_bt.vision.detector.refine import RefinerConfig
 
-__all__ = ["BoxRefinerNet", "load_refiner_net", "train_refiner", "export_refiner_onnx"]
+__all__ = ["BoxRefinerNet", "train_refiner", "export_network_onnx"]
 
 
 class BoxRefinerNet(nn.Module):
     """(B, 3, P, P) crops in [0, 1] and (B, 4) the boxes they were cut around -> (B, 4) refined boxes;
     boxes are x0, y0, x1, y1 as fractions of the crop side, and the network predicts the correction."""
 
-    def __init__(self, config: RefinerConfig = RefinerConfig()) -> None:
+    def __init__(self, config) -> None:
         super().__init__()
         self.config = config
         layers, cin = [], 3
@@ -41,7 +41,7 @@ def _to_tensor(crops: np.ndarray) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(crops[..., ::-1])).permute(0, 3, 1, 2).float().div_(255.0)
 
 
-def train_refiner(crops: np.ndarray, given: np.ndarray, targets: np.ndarray, out_path: str | Path, config: RefinerConfig = RefinerConfig(),
+def train_refiner(crops: np.ndarray, given: np.ndarray, targets: np.ndarray, out_path: str | Path, config,
                   steps: int = 3000, batch: int = 128, lr: float = 2e-3, seed: int = 0, progress="stderr") -> Path:
     """Fit :class:`BoxRefinerNet` (smooth L1 on the box fractions, horizontal flips, AdamW with a cosine decay)
     and save ``{"config", "state_dict"}`` (fp16) to ``out_path``."""
@@ -79,26 +79,10 @@ def train_refiner(crops: np.ndarray, given: np.ndarray, targets: np.ndarray, out
     return out
 
 
-def load_refiner_net(weights: str | Path) -> BoxRefinerNet:
-    """The refiner network saved by :func:`train_refiner` at ``weights``, in eval mode, float32."""
-    blob = torch.load(Path(weights), map_location="cpu", weights_only=False)
-    net = BoxRefinerNet(RefinerConfig.from_dict(blob["config"]))
-    net.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in blob["state_dict"].items()})
-    return net.eval()
-
-
-def export_refiner_onnx(weights: str | Path, out_path: str | Path | None = None) -> Path:
-    """Export the refiner at ``weights`` to ONNX (default: beside it, :func:`~chaser_bt.vision.detector.refine.refiner_onnx_path`),
-    inputs ``crops`` (B, 3, P, P) RGB in [0, 1] and ``boxes`` (B, 4), output ``refined`` (B, 4), with its
-    crop geometry in the file's metadata so onnxruntime runs it without torch (needs the onnx package)."""
-    from chaser_bt.vision.detector.inference import write_metadata
-    from chaser_bt.vision.detector.refine import refiner_onnx_path
-
-    net = load_refiner_net(weights)
-    out = Path(out_path) if out_path is not None else refiner_onnx_path(weights)
+def export_network_onnx(net: BoxRefinerNet, out_path: str | Path) -> Path:
+    """Write ``net`` to ONNX: inputs ``crops`` (B, 3, P, P) and ``boxes`` (B, 4), output ``refined`` (B, 4), B free."""
     p = net.config.input_px
-    torch.onnx.export(net, (torch.zeros(2, 3, p, p), torch.zeros(2, 4)), str(out), input_names=["crops", "boxes"],
+    torch.onnx.export(net.eval(), (torch.zeros(2, 3, p, p), torch.zeros(2, 4)), str(out_path), input_names=["crops", "boxes"],
                       output_names=["refined"], opset_version=17,
                       dynamic_axes={"crops": {0: "n"}, "boxes": {0: "n"}, "refined": {0: "n"}}, dynamo=False)
-    write_metadata(out, {"refiner_config": net.config.to_dict()})
-    return out
+    return Path(out_path)
