@@ -209,7 +209,10 @@ class Detector:
         return load_model(self.weights)
 
     def __call__(self, frame_bgr: np.ndarray) -> list[Detection]:
-        img, scale, (px, py) = letterbox(frame_bgr, self.image_size)
+        if frame_bgr.shape[:2] == (self.image_size, self.image_size):  # a focus window: already the input's size
+            img, scale, (px, py) = frame_bgr, 1.0, (0, 0)
+        else:
+            img, scale, (px, py) = letterbox(frame_bgr, self.image_size)
         x = network_input(img)
         if self._session is not None:
             raw = self._session.run(None, {"images": x})[0]
