@@ -135,6 +135,12 @@ def _train_refiner(args: argparse.Namespace) -> int:
     crops, given, targets = (np.concatenate(parts) for parts in zip(*sets))
     out = train_refiner(crops, given, targets, args.out, config, steps=args.steps, seed=args.seed)
     print(f"refiner written to {out}")
+    try:  # the copy the detector runs in onnxruntime, without torch
+        from chaser_bt.vision.detector.refine import export_refiner_onnx
+
+        print(f"ONNX copy written to {export_refiner_onnx(out)}")
+    except ImportError:
+        print("onnx is not installed: no ONNX copy (the refiner runs in torch)")
     return 0
 
 

@@ -95,7 +95,7 @@ def test_onnx_backend_gives_the_torch_detections():
 
     assert DEFAULT_ONNX.exists()
     img = (np.random.default_rng(0).random((480, 640, 3)) * 255).astype(np.uint8)
-    a = Detector(conf_threshold=0.001, backend="torch", refiner=None)(img)  # the network alone: the refiner runs in torch either way
+    a = Detector(conf_threshold=0.001, backend="torch", refiner=None)(img)  # the network alone
     b = Detector(conf_threshold=0.001, backend="onnx", refiner=None)(img)
     assert len(a) == len(b) > 0
     for x, y in zip(a, b):
@@ -310,3 +310,50 @@ def test_quantize_detector_command_writes_the_int8_copy_that_auto_then_runs(tmp_
     assert det.backend == "onnx-int8" and det.onnx_path == q
     assert main(["quantize-detector", "--weights", str(tmp_path / "none.pt"), "--calib", str(calib)]) == 2
     assert "--weights" in capsys.readouterr().err
+
+
+def test_the_head_decoded_in_numpy_is_the_torch_decode_of_the_cells_kept():
+    from chaser_bt.vision.detector.inference import decode_head
+
+    raw = torch.from_numpy(np.random.default_rng(3).normal(0.0, 2.5, (1, 7, 13, 17)).astype(np.float32))
+    want = decode(raw, 8)[0].numpy()
+    assert np.allclose(decode_head(raw.numpy(), 8), want, rtol=1e-5, atol=1e-4)
+    kept = want[:, 4] >= 0.6
+    assert 0 < kept.sum() < len(want)
+    assert np.allclose(decode_head(raw.numpy(), 8, 0.6), want[kept], rtol=1e-5, atol=1e-4)
+
+
+def test_shipped_onnx_copies_carry_the_weights_config_and_the_detector_runs_them_without_torch():
+    """The metadata in each shipped ONNX copy is the .pt file's own config; a fresh interpreter runs the
+    shipped detector (network, decode, refiner) without importing torch."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import onnxruntime
+
+    from chaser_bt.vision.detector.inference import SHIPPED_WEIGHTS, int8_path
+    from chaser_bt.vision.detector.onnx_copy import read_metadata
+
+    for weights in SHIPPED_WEIGHTS.values():
+        blob = torch.load(weights, map_location="cpu", weights_only=False)
+        for copy in (weights.with_suffix(".onnx"), int8_path(weights)):
+            meta = read_metadata(onnxruntime.InferenceSession(str(copy), providers=["CPUExecutionProvider"]))
+            assert meta["config"]["class_names"] == list(blob["config"]["class_names"]), copy
+            assert meta["config"]["stride"] == blob["config"]["stride"] and meta["obj_iou"] == float(blob.get("obj_iou", 0.0)), copy
+    code = ("import sys, numpy as np; from chaser_bt.vision.detector.inference import Detector; d = Detector(); "
+            "d(np.full((480, 640, 3), 100, np.uint8)); d.refiner.boxes(np.zeros((480, 640, 3), np.uint8), [(10, 10, 30, 30)]); "
+            "print(d.backend, d.refiner.backend, 'torch' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=Path(__file__).parents[2])
+    assert out.stdout.split() == ["onnx-int8", "onnx", "False"], out.stderr
+
+
+def test_network_input_is_the_image_as_rgb_planes_in_zero_to_one():
+    from chaser_bt.vision.detector.inference import network_input
+
+    img = np.random.default_rng(5).integers(0, 256, (64, 96, 3), dtype=np.uint8)
+    want = (img[..., ::-1].transpose(2, 0, 1).astype(np.float32) / np.float32(255.0))[None]
+    got = network_input(img)
+    assert got.dtype == np.float32 and got.shape == (1, 3, 64, 96) and got.flags.c_contiguous
+    assert np.array_equal(got, want)
+    assert got[0, 0, 3, 7] == np.float32(img[3, 7, 2]) / np.float32(255.0)  # plane 0 is red (BGR's last)

@@ -119,3 +119,53 @@ def test_the_shipped_refiner_improves_the_shipped_detectors_boxes_on_a_fresh_hel
                 if best >= 0.5:
                     ious[name].append(best)
     assert np.mean(ious["refined"]) > np.mean(ious["plain"]), {k: np.mean(v) for k, v in ious.items()}
+
+
+def test_an_exported_refiner_runs_in_onnxruntime_as_in_torch_and_a_stale_copy_is_not_used(tmp_path):
+    import os
+
+    pytest.importorskip("onnxruntime")
+    from chaser_bt.vision.detector.refine import export_refiner_onnx, refiner_onnx_path
+
+    torch.manual_seed(0)
+    net = BoxRefinerNet(RefinerConfig(input_px=32, widths=(8, 16, 16)))
+    _save(net, tmp_path / "r.pt")
+    assert BoxRefiner(tmp_path / "r.pt").backend == "torch"  # no copy yet
+    assert export_refiner_onnx(tmp_path / "r.pt") == refiner_onnx_path(tmp_path / "r.pt") == tmp_path / "r.onnx"
+    onnx, plain = BoxRefiner(tmp_path / "r.pt"), BoxRefiner(tmp_path / "r.pt", backend="torch")
+    assert onnx.backend == "onnx" and onnx.config == plain.config
+    img = (np.random.default_rng(4).random((120, 160, 3)) * 255).astype(np.uint8)
+    boxes = np.array([(40.0, 30.0, 80.0, 50.0), (100.0, 60.0, 130.0, 100.0), (0.0, 0.0, 6.0, 9.0)])
+    with torch.inference_mode():  # the network by hand, on the crops the refiner cuts
+        w = np.array([crop_window(b, plain.config) for b in boxes])
+        crops = torch.from_numpy(np.ascontiguousarray(_crops(img, w, 32)[..., ::-1])).permute(0, 3, 1, 2).float() / 255.0
+        frac = net.eval()(crops, torch.from_numpy(((boxes - w[:, [0, 1, 0, 1]]) / w[:, [2, 2, 2, 2]]).astype(np.float32))).numpy()
+    by_hand = w[:, [0, 1, 0, 1]] + frac * w[:, [2, 2, 2, 2]]
+    kept = np.linalg.norm(0.5 * (by_hand[:, :2] + by_hand[:, 2:] - boxes[:, :2] - boxes[:, 2:]), axis=1) <= 0.5 * (boxes[:, 2:] - boxes[:, :2]).max(1)
+    want = np.where(kept[:, None], by_hand, boxes)
+    assert plain.boxes(img, boxes) == pytest.approx(want, abs=1e-4)
+    assert onnx.boxes(img, boxes) == pytest.approx(want, abs=1e-3)
+    t = (tmp_path / "r.pt").stat().st_mtime
+    os.utime(tmp_path / "r.onnx", (t - 60, t - 60))  # retrained after the copy was made
+    assert BoxRefiner(tmp_path / "r.pt").backend == "torch"
+
+
+def test_the_shipped_refiners_onnx_copy_places_the_detectors_boxes_as_torch_does_on_rendered_frames():
+    pytest.importorskip("onnxruntime")
+    from chaser_bt.vision.detector.inference import DEFAULT_WEIGHTS, Detector
+    from sitl.bench.camera_dataset import DatasetRenderer
+
+    onnx = BoxRefiner(refiner_path(DEFAULT_WEIGHTS))
+    plain = BoxRefiner(refiner_path(DEFAULT_WEIGHTS), backend="torch")
+    assert onnx.backend == "onnx"
+    det = Detector(refiner=None)
+    data = DatasetRenderer("heldout", ground_size_px=1024, follow_share=0.5)
+    rng = np.random.default_rng(20261202)
+    count = 0
+    for _ in range(12):
+        image = data.sample(rng).image
+        boxes = [d.box for d in det(image)]
+        if boxes:
+            count += len(boxes)
+            assert onnx.boxes(image, boxes) == pytest.approx(plain.boxes(image, boxes), abs=0.01)
+    assert count >= 8

@@ -129,10 +129,13 @@ def test_train_refiner_writes_a_refiner_the_detector_can_load(tmp_path, capsys):
     add_command(parser.add_subparsers())
     out = tmp_path / "r.pt"
     args = parser.parse_args(["train-refiner", "--data", str(tmp_path / "d"), "--out", str(out), "--steps", "3", "--threads", "1"])
-    assert args.handler(args) == 0 and str(out) in capsys.readouterr().out
+    assert args.handler(args) == 0
+    printed = capsys.readouterr().out
+    assert str(out) in printed and str(out.with_suffix(".onnx")) in printed
     det = Detector(refiner=out)
     img = np.full((480, 640, 3), 120, np.uint8)
-    assert det.refiner is not None and det.refiner.boxes(img, [(100.0, 100.0, 140.0, 120.0)]).shape == (1, 4)
+    assert det.refiner is not None and det.refiner.backend == "onnx"  # the copy written beside it runs
+    assert det.refiner.boxes(img, [(100.0, 100.0, 140.0, 120.0)]).shape == (1, 4)
 
 
 def test_eval_detector_prints_model_card_metrics_on_a_rendered_folder(tmp_path, capsys):

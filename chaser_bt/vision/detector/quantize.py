@@ -17,6 +17,7 @@ Nothing here is hand-written quantization: the calibration reader only feeds fra
 
 from __future__ import annotations
 
+import json
 import tempfile
 from pathlib import Path
 from typing import Iterable, Sequence
@@ -25,6 +26,7 @@ import numpy as np
 
 from chaser_bt.vision.detector.augment import letterbox
 from chaser_bt.vision.detector.inference import int8_path, network_input
+from chaser_bt.vision.detector.onnx_copy import METADATA_KEY, write_metadata
 
 __all__ = ["DEFAULT_EXCLUDE", "CALIBRATION_METHODS", "FrameReader", "int8_path", "quantize_detector", "read_frames"]
 
@@ -123,4 +125,7 @@ def quantize_detector(onnx_in: str | Path, out: str | Path, frames: Sequence[np.
         quantize_static(str(pre), str(out), reader, quant_format=QuantFormat.QDQ, activation_type=QuantType.QUInt8,
                         weight_type=QuantType.QInt8, per_channel=per_channel, calibrate_method=calibrate,
                         nodes_to_exclude=keep_float, extra_options=extra)
+    meta = {p.key: p.value for p in model.metadata_props}.get(METADATA_KEY)
+    if meta is not None:  # what the network is travels with the copy (inference reads it without torch)
+        write_metadata(out, json.loads(meta))
     return Path(out)

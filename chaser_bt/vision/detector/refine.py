@@ -6,32 +6,49 @@ detectors (R-CNN's box head), a small network looks again at a square crop of th
 detection (``context`` times its larger side, resized to ``input_px``) and regresses the target's
 box in crop coordinates. It is trained on rendered frames with the labels jittered the way the
 detector errs (:func:`make_refiner_set`, :func:`train_refiner`) and ships beside the detector whose
-classes it knows, as ``<detector>_refiner.pt`` (:func:`refiner_path`).
+classes it knows, as ``<detector>_refiner.pt`` (:func:`refiner_path`), with an ONNX copy
+(``<detector>_refiner.onnx``, :func:`refiner_onnx_path`) that onnxruntime runs.
+
+This module runs the refiner without torch when that copy is there (torch costs seconds to import and
+the copy runs a crop in a third of torch's time); the network, its training and the export are in
+:mod:`chaser_bt.vision.detector.refine_net` (torch), whose names are also reachable from here.
 """
 
 from __future__ import annotations
 
-import math
-import sys
+import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Sequence
 
 import cv2
 import numpy as np
-import torch
-from torch import nn
 
 from chaser_bt.vision.detection import Detection
-from chaser_bt.vision.detector.model import conv_bn_act
+from chaser_bt.vision.detector.onnx_copy import fresh, have_onnxruntime, ort_session, read_metadata, write_metadata
 
-__all__ = ["RefinerConfig", "BoxRefinerNet", "BoxRefiner", "refiner_path", "crop_window", "jitter_boxes", "make_refiner_set", "train_refiner"]
+__all__ = ["RefinerConfig", "BoxRefinerNet", "BoxRefiner", "refiner_path", "refiner_onnx_path", "crop_window", "jitter_boxes",
+           "make_refiner_set", "train_refiner", "load_refiner_net", "export_refiner_onnx"]
+_TORCH_NAMES = ("BoxRefinerNet", "train_refiner")
+
+
+def __getattr__(name: str) -> Any:  # the torch half, imported when asked for (PEP 562)
+    if name in _TORCH_NAMES:
+        from chaser_bt.vision.detector import refine_net
+
+        return getattr(refine_net, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def refiner_path(detector_weights: str | Path) -> Path:
     """Where the refiner paired with ``detector_weights`` lives: beside it, named ``<stem>_refiner.pt``."""
     p = Path(detector_weights)
     return p.with_name(f"{p.stem}_refiner.pt")
+
+
+def refiner_onnx_path(refiner_weights: str | Path) -> Path:
+    """The refiner's ONNX copy: beside its weights, ``<stem>.onnx``."""
+    return Path(refiner_weights).with_suffix(".onnx")
 
 
 @dataclass(frozen=True)
@@ -49,25 +66,6 @@ class RefinerConfig:
     @classmethod
     def from_dict(cls, d: dict) -> "RefinerConfig":
         return cls(int(d["input_px"]), float(d["context"]), float(d["min_side_px"]), tuple(d["widths"]))
-
-
-class BoxRefinerNet(nn.Module):
-    """(B, 3, P, P) crops in [0, 1] and (B, 4) the boxes they were cut around -> (B, 4) refined boxes;
-    boxes are x0, y0, x1, y1 as fractions of the crop side, and the network predicts the correction."""
-
-    def __init__(self, config: RefinerConfig = RefinerConfig()) -> None:
-        super().__init__()
-        self.config = config
-        layers, cin = [], 3
-        for w in config.widths:
-            layers += [conv_bn_act(cin, w, 3, 2), conv_bn_act(w, w, 3, 1)]
-            cin = w
-        self.features = nn.Sequential(*layers)
-        cells = (config.input_px // 2 ** len(config.widths)) ** 2
-        self.head = nn.Sequential(nn.Flatten(), nn.Linear(cin * cells, 128), nn.LeakyReLU(0.1, inplace=True), nn.Linear(128, 4))
-
-    def forward(self, x: torch.Tensor, boxes: torch.Tensor) -> torch.Tensor:
-        return boxes + self.head(self.features(x))
 
 
 def crop_window(box: Sequence[float], config: RefinerConfig) -> tuple[float, float, float]:
@@ -92,10 +90,6 @@ def _fractions(boxes: np.ndarray, windows: np.ndarray) -> np.ndarray:
     return (boxes - windows[:, [0, 1, 0, 1]]) / windows[:, [2, 2, 2, 2]]
 
 
-def _to_tensor(crops: np.ndarray) -> torch.Tensor:
-    return torch.from_numpy(np.ascontiguousarray(crops[..., ::-1])).permute(0, 3, 1, 2).float().div_(255.0)
-
-
 class BoxRefiner:
     """Detections in, the same detections with refined boxes out.
 
@@ -103,18 +97,58 @@ class BoxRefiner:
         weights: a file written by :func:`train_refiner`.
         max_shift: a refined box whose centre moved more than this many of the old box's sizes is
             not trusted and the old box kept (the crop held something else).
+        backend: "auto" = onnxruntime on the ONNX copy (:func:`refiner_onnx_path`) when it is installed
+            and the copy exists, carries its crop geometry and is not older than ``weights``, else torch;
+            "torch" or "onnx" to choose (an "onnx" copy that is missing or cannot load is an error).
+        threads: onnxruntime's intra-op threads (torch's are process-wide: the detector sets them).
     """
 
-    def __init__(self, weights: str | Path, max_shift: float = 0.5) -> None:
+    def __init__(self, weights: str | Path, max_shift: float = 0.5, backend: str = "auto", threads: int = 1) -> None:
         p = Path(weights)
         if not p.exists():
             raise FileNotFoundError(f"box refiner weights not found: {p}")
-        blob = torch.load(p, map_location="cpu", weights_only=False)
-        self.config = RefinerConfig.from_dict(blob["config"])
-        self.net = BoxRefinerNet(self.config)
-        self.net.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in blob["state_dict"].items()})
-        self.net.eval()
+        if backend not in ("auto", "torch", "onnx"):
+            raise ValueError(f"backend must be 'auto', 'torch' or 'onnx', got {backend!r}")
         self.max_shift = max_shift
+        self._session = self._net = None
+        onnx = refiner_onnx_path(p)
+        if backend == "onnx" or (backend == "auto" and fresh(onnx, p)):
+            try:
+                if not have_onnxruntime():
+                    raise ValueError("onnxruntime is not installed")
+                session = ort_session(onnx, threads)
+                meta = read_metadata(session)
+                if "refiner_config" not in meta:
+                    raise ValueError(f"{onnx}: no refiner_config in its metadata (export it with export_refiner_onnx)")
+                self._session, self.config = session, RefinerConfig.from_dict(meta["refiner_config"])
+            except (ValueError, FileNotFoundError) as exc:
+                if backend == "onnx":
+                    raise
+                warnings.warn(f"{exc}; running the refiner in torch", RuntimeWarning, stacklevel=2)
+        if self._session is None:
+            self._net = load_refiner_net(p)
+            self.config = self._net.config
+        #: "onnx" or "torch": what runs the network.
+        self.backend = "onnx" if self._session is not None else "torch"
+
+    @property
+    def net(self):
+        """The torch network (loaded on first use when onnxruntime runs the refiner)."""
+        if self._net is None:
+            raise AttributeError("this refiner runs its ONNX copy; load the torch network with load_refiner_net")
+        return self._net
+
+    def _run(self, crops: np.ndarray, given: np.ndarray) -> np.ndarray:
+        """(N, P, P, 3) BGR crops and (N, 4) given boxes (crop fractions) -> (N, 4) refined fractions."""
+        if self._session is not None:
+            x = np.ascontiguousarray(crops[..., ::-1].transpose(0, 3, 1, 2), np.float32) / np.float32(255.0)
+            return self._session.run(None, {"crops": x, "boxes": given})[0]
+        import torch
+
+        from chaser_bt.vision.detector.refine_net import _to_tensor
+
+        with torch.inference_mode():
+            return self._net(_to_tensor(crops), torch.from_numpy(given)).numpy()
 
     def boxes(self, image: np.ndarray, boxes: Sequence[Sequence[float]]) -> np.ndarray:
         """(N, 4) refined boxes (frame pixels) for ``boxes``."""
@@ -123,9 +157,7 @@ class BoxRefiner:
         old = np.asarray(boxes, float)
         windows = [crop_window(b, self.config) for b in old]
         w = np.array(windows, float)
-        given = torch.from_numpy(_fractions(old, w).astype(np.float32))
-        with torch.inference_mode():
-            frac = self.net(_to_tensor(_crops(image, windows, self.config.input_px)), given).numpy()
+        frac = self._run(_crops(image, windows, self.config.input_px), _fractions(old, w).astype(np.float32))
         out = w[:, [0, 1, 0, 1]] + frac * w[:, [2, 2, 2, 2]]
         size = np.maximum(old[:, 2:] - old[:, :2], 1.0).max(1)
         shift = np.linalg.norm(0.5 * (out[:, :2] + out[:, 2:] - old[:, :2] - old[:, 2:]), axis=1)
@@ -171,39 +203,28 @@ def make_refiner_set(images: Sequence[np.ndarray], boxes: Sequence[np.ndarray], 
     return np.concatenate(crops), np.concatenate(given).astype(np.float32), np.concatenate(targets).astype(np.float32)
 
 
-def train_refiner(crops: np.ndarray, given: np.ndarray, targets: np.ndarray, out_path: str | Path, config: RefinerConfig = RefinerConfig(),
-                  steps: int = 3000, batch: int = 128, lr: float = 2e-3, seed: int = 0, progress="stderr") -> Path:
-    """Fit :class:`BoxRefinerNet` (smooth L1 on the box fractions, horizontal flips, AdamW with a cosine decay)
-    and save ``{"config", "state_dict"}`` (fp16) to ``out_path``."""
-    if progress == "stderr":  # the stream at call time, not at import (a test runner swaps it)
-        progress = sys.stderr
-    torch.manual_seed(seed)
-    rng = np.random.default_rng(seed)
-    net = BoxRefinerNet(config)
-    opt = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=1e-4)
-    x_all = _to_tensor(crops)
-    g_all = torch.from_numpy(given)
-    y_all = torch.from_numpy(targets)
-    net.train()
-    for step in range(steps):
-        for g in opt.param_groups:
-            g["lr"] = lr * 0.5 * (1 + math.cos(math.pi * step / steps))
-        idx = torch.from_numpy(rng.integers(len(x_all), size=batch))
-        x, g, y = x_all[idx], g_all[idx].clone(), y_all[idx].clone()
-        flip = torch.from_numpy(rng.random(batch) < 0.5)
-        x[flip] = x[flip].flip(3)
-        for b in (g, y):
-            b[flip] = torch.stack([1 - b[flip, 2], b[flip, 1], 1 - b[flip, 0], b[flip, 3]], 1)
-        loss = nn.functional.smooth_l1_loss(net(x, g), y, beta=0.02)
-        opt.zero_grad()
-        loss.backward()
-        opt.step()
-        if progress is not None and ((step + 1) % 100 == 0 or step + 1 == steps):
-            progress.write(f"refiner {step + 1}/{steps} loss {float(loss.detach()):.4f}\n")
-            progress.flush()
-    net.eval()
-    sd = {k: (v.half() if v.dtype == torch.float32 else v) for k, v in net.state_dict().items()}
-    out = Path(out_path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    torch.save({"config": config.to_dict(), "state_dict": sd}, out)
+
+def load_refiner_net(weights: str | Path):
+    """The torch refiner network (:class:`~chaser_bt.vision.detector.refine_net.BoxRefinerNet`) saved by
+    :func:`train_refiner` at ``weights``, in eval mode, float32."""
+    import torch
+
+    from chaser_bt.vision.detector.refine_net import BoxRefinerNet
+
+    blob = torch.load(Path(weights), map_location="cpu", weights_only=False)
+    net = BoxRefinerNet(RefinerConfig.from_dict(blob["config"]))
+    net.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in blob["state_dict"].items()})
+    return net.eval()
+
+
+def export_refiner_onnx(weights: str | Path, out_path: str | Path | None = None) -> Path:
+    """Export the refiner at ``weights`` to ONNX (default: beside it, :func:`refiner_onnx_path`), inputs
+    ``crops`` (B, 3, P, P) RGB in [0, 1] and ``boxes`` (B, 4), output ``refined`` (B, 4), with its crop
+    geometry in the file's metadata so onnxruntime runs it without torch (needs torch and the onnx package)."""
+    from chaser_bt.vision.detector.refine_net import export_network_onnx
+
+    net = load_refiner_net(weights)
+    out = Path(out_path) if out_path is not None else refiner_onnx_path(weights)
+    export_network_onnx(net, out)
+    write_metadata(out, {"refiner_config": net.config.to_dict()})
     return out

@@ -12,7 +12,7 @@ from typing import Callable
 import cv2
 import numpy as np
 
-__all__ = ["PowerLine", "make_power_lines"]
+__all__ = ["PowerLine", "make_power_lines", "boxes_reach"]
 
 Projector = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]  # ENU (N, 3) -> pixels (N, 2), depth (N,)
 
@@ -28,17 +28,25 @@ class PowerLine:
     sag_m: float = 0.8
     colour: tuple[int, int, int] = (40, 40, 45)
 
-    def draw(self, img: np.ndarray, project: Projector, focal_px: float) -> None:
+    def draw(self, img: np.ndarray, project: Projector, focal_px: float, views=None) -> None:
+        """Draw the poles and wires; ``views`` ((x0, y0, x1, y1) pixel rectangles, None: the whole
+        image): a pole or wire that cannot reach any of them is not drawn."""
+        if views is None:
+            views = [(0, 0, img.shape[1], img.shape[0])]
         k = len(self.poles_enu)
         base = np.column_stack([self.poles_enu, np.zeros(k)])
         top = base + [0.0, 0.0, self.height_m]
         px_b, z_b = project(base)
         px_t, z_t = project(top)
-        for i in range(k):
-            if min(z_b[i], z_t[i]) > 1.0:
-                width = max(int(round(0.25 * focal_px / z_b[i])), 1)
-                if width <= 40:
-                    _line(img, px_b[i], px_t[i], self.colour, width)
+        ahead = np.minimum(z_b, z_t) > 1.0
+        width = np.maximum(np.round(0.25 * focal_px / np.where(ahead, z_b, 1.0)), 1.0)
+        ok = ahead & (width <= 40) & np.isfinite(px_b).all(1) & np.isfinite(px_t).all(1)
+        ok &= np.maximum(np.abs(px_b).max(1), np.abs(px_t).max(1)) < 1e5
+        reach = (width + 2.0)[:, None]
+        ok &= boxes_reach(np.minimum(px_b, px_t) - reach, np.maximum(px_b, px_t) + reach, views)
+        for i in np.flatnonzero(ok):
+            a, b = px_b[i], px_t[i]
+            cv2.line(img, (int(a[0] * 16), int(a[1] * 16)), (int(b[0] * 16), int(b[1] * 16)), self.colour, int(width[i]), cv2.LINE_AA, 4)
         spans = k - 1
         if spans < 1:
             return
@@ -50,12 +58,17 @@ class PowerLine:
         px, z = project(pts.reshape(-1, 3))
         px, z = px.reshape(spans * self.wires, 12, 2), z.reshape(spans * self.wires, 12)
         keep = (z > 1.0).all(axis=1) & (np.abs(px) < 1e5).all(axis=(1, 2))
+        keep &= boxes_reach(px.min(axis=1) - 3.0, px.max(axis=1) + 3.0, views)
         if keep.any():
             cv2.polylines(img, list(np.round(px[keep] * 16).astype(np.int32)), False, self.colour, 1, cv2.LINE_AA, 4)
 
-def _line(img: np.ndarray, a: np.ndarray, b: np.ndarray, colour: tuple[int, int, int], width: int) -> None:
-    if np.all(np.isfinite([a, b])) and max(np.abs(a).max(), np.abs(b).max()) < 1e5:
-        cv2.line(img, (int(a[0] * 16), int(a[1] * 16)), (int(b[0] * 16), int(b[1] * 16)), colour, width, cv2.LINE_AA, 4)
+
+def boxes_reach(lo: np.ndarray, hi: np.ndarray, views) -> np.ndarray:
+    """Which of the (N, 2) pixel boxes ``lo``-``hi`` overlap any of ``views``."""
+    hit = np.zeros(len(lo), bool)
+    for x0, y0, x1, y1 in views:
+        hit |= (hi[:, 0] >= x0) & (lo[:, 0] < x1) & (hi[:, 1] >= y0) & (lo[:, 1] < y1)
+    return hit
 
 
 def make_power_lines(rng: np.random.Generator, count: int, half_extent_m: float) -> list[PowerLine]:

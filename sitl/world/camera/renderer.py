@@ -26,6 +26,7 @@ from chaser_bt.vision.camera import CameraModel
 from chaser_bt.vision.frame_source import Region
 from sitl.world.camera.lighting import Lighting
 from sitl.world.camera.models import TargetModel, model_for
+from sitl.world.camera.props import boxes_reach
 from sitl.world.camera.effects import vignette_map
 from sitl.world.camera.fields import DETAIL_M_PER_PX
 from sitl.world.camera.scene import GroundScene
@@ -191,7 +192,7 @@ class Renderer:
             for x0, y0, x1, y1 in views:
                 img[y0:y1, x0:x1] = self._background((x0, y0, x1, y1), r_ce, c_enu, sun, lighting)
         if self.world is not None:
-            self._draw_world(img, r_ce, c_enu, t)
+            self._draw_world(img, r_ce, c_enu, t, views)
         labels = self._draw_targets(img, r_ce, c_enu, targets, sun, lighting.brightness)
         effects = self.world.effects if self.world is not None else None
         gains = effects.gains(t) + (1.0,) if effects is not None else None
@@ -265,7 +266,8 @@ class Renderer:
             rays = np.stack([u_lo, v_lo, np.ones_like(u_lo)], axis=-1) @ r_ce.T
             rays *= inv_norm_lo[..., None]
             glare = sky_model.glare_map(rays, sun)[..., None]  # the lens sees it over sky and ground alike
-            back = np.clip(np.where(ground[..., None], hor, sky_model.colour(rays, c_enu)) + glare, 0, 255).astype(np.uint8)
+            sky = hor if ground.all() else np.where(ground[..., None], hor, sky_model.colour(rays, c_enu))  # no sky in view: none to work out
+            back = np.clip(sky + glare, 0, 255).astype(np.uint8)
         back = cv2.resize(back, size, interpolation=cv2.INTER_LINEAR)
         if self._vignette_lo is None:
             weight = cv2.resize(weight, size, interpolation=cv2.INTER_LINEAR)
@@ -330,8 +332,9 @@ class Renderer:
         px = np.stack([0.5 * self.camera.width_px + fx * c[:, 0] / zs, 0.5 * self.camera.height_px + fy * c[:, 1] / zs], axis=1)
         return px, z
 
-    def _draw_world(self, img: np.ndarray, r_ce: np.ndarray, c_enu: np.ndarray, t: float) -> None:
-        """Power lines, then birds and aircraft, drawn before the targets."""
+    def _draw_world(self, img: np.ndarray, r_ce: np.ndarray, c_enu: np.ndarray, t: float, views: Sequence[Region]) -> None:
+        """Power lines, then birds and aircraft, drawn before the targets; what cannot reach any of
+        ``views`` is not drawn (outside them the frame is a fill nobody reads)."""
         world = self.world
 
         def project(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -339,13 +342,20 @@ class Renderer:
 
         f = self.camera.focal_px[0]
         for prop in world.props:
-            prop.draw(img, project, f)
+            prop.draw(img, project, f, views)
         for plane in world.aircraft:
             plane.draw(img, project, f, t)
         if world.birds:  # most birds are out of view at any moment: cull them together first
             px, z = project(np.array([b.position(t) for b in world.birds]))
             w, h = self.camera.width_px, self.camera.height_px
             seen = (z > 1.0) & (px[:, 0] > -50) & (px[:, 0] < w + 50) & (px[:, 1] > -50) & (px[:, 1] < h + 50)
+            # A bird's wings reach half its span from its body: their pixels lie within
+            # f h / (z - h) (1 + |body pixel - centre| / f) of the body's (h the half span), plus the stroke.
+            half = np.array([0.5 * b.span_m for b in world.birds])
+            near = z - half <= 1.0
+            reach = f * half / np.where(near, 1.0, z - half) * (1.0 + (np.abs(px[:, 0] - 0.5 * w) + np.abs(px[:, 1] - 0.5 * h)) / f)
+            reach += 0.12 * 2.0 * half * f / np.maximum(z, 1.0) + 3.0
+            seen &= near | boxes_reach(px - reach[:, None], px + reach[:, None], views)
             for k in np.flatnonzero(seen):
                 world.birds[k].draw(img, project, f, t)
 
