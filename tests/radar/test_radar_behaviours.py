@@ -106,6 +106,6 @@ def test_operator_confirmation_validates_but_not_our_own_track(flight):
 
 def test_cue_fails_when_the_radar_goes_quiet(flight):
     v, feed, _ = flight
-    v.sim.radar = None
+    v.sim.surroundings.radar = None  # the radar goes quiet
     _, st = tick_tree(flight, "RadarCue: {max_age_s: 2.0}", 3.5)
     assert st[0] == Status.SUCCESS and st[-1] == Status.FAILURE
