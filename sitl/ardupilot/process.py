@@ -13,11 +13,14 @@ defaults, then the airframe's, then the scenario's (ArduCopter names; later file
 
 from __future__ import annotations
 
+import ctypes
 import logging
 import os
 import shutil
+import signal
 import socket
 import subprocess
+import sys
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,6 +31,7 @@ __all__ = ["ARDUPILOT_ENV", "ArduCopterProcess", "ArduPilotMissing", "find_ardup
 log = logging.getLogger(__name__)
 
 ARDUPILOT_ENV = "CHASER_BT_ARDUPILOT"
+_PR_SET_PDEATHSIG = 1  # linux/prctl.h
 _REPO_SHARED = Path(__file__).resolve().parents[2].parent / "shared" / "ardupilot"
 
 
@@ -75,6 +79,13 @@ def instance_free(instance: int) -> bool:
             and _port_free(socket.SOCK_DGRAM, rc_port(instance)))
 
 
+def _die_with_parent() -> None:
+    """In the child, before exec: Linux kills it when the process that started it dies (a campaign
+    worker ended at once leaves no ArduCopter behind; waiting for physics, it ignores SIGTERM)."""
+    if sys.platform.startswith("linux"):
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+
+
 @dataclass
 class ArduCopterProcess:
     """One ``arducopter`` started with ``--model JSON``: it waits for our physics from its first step.
@@ -110,7 +121,7 @@ class ArduCopterProcess:
         log.info("starting ArduCopter SITL: %s", " ".join(cmd))
         with open(self.workdir / "sitl.log", "wb") as out:
             self.proc = subprocess.Popen(cmd, cwd=self.workdir, stdout=out, stderr=subprocess.STDOUT,
-                                         stdin=subprocess.DEVNULL)
+                                         stdin=subprocess.DEVNULL, preexec_fn=_die_with_parent)
 
     @property
     def url(self) -> str:
@@ -129,13 +140,10 @@ class ArduCopterProcess:
         return "\n".join(text.strip().splitlines()[-lines:])
 
     def stop(self) -> None:
-        """Stop the binary and remove its working folder."""
+        """Stop the binary (killed: it keeps nothing, and while it waits for physics it ignores SIGTERM)
+        and remove its working folder."""
         if self.proc is not None and self.proc.poll() is None:
-            self.proc.terminate()
-            try:
-                self.proc.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
+            self.proc.kill()
+            self.proc.wait()
         if getattr(self, "workdir", None) is not None:
             shutil.rmtree(self.workdir, ignore_errors=True)

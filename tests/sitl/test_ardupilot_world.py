@@ -13,6 +13,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -172,3 +173,31 @@ def test_arducopter_estimate_agrees_with_our_truth_while_it_turns_and_flies():
         vehicle.close()
     assert worst_deg < 3.0 and worst_m < 1.0, (worst_deg, worst_m)  # telemetry is 10 Hz: a little behind
     assert -1.9 < turned < -1.3  # NED yaw falls as it turns counter-clockwise: about 0.3 rad/s for 5.5 s
+
+
+@pytest.mark.slow
+def test_arducopter_dies_with_the_process_that_started_it(tmp_path):
+    """A campaign worker ended at once (SIGKILL) leaves no ArduCopter behind waiting for physics."""
+    _ardupilot()
+    script = tmp_path / "start.py"
+    script.write_text(
+        "import sys, time\n"
+        "from sitl.ardupilot.simulator import ArduPilotSimulator\n"
+        "from sitl.world.scenario import load_scenario\n"
+        f"sim = ArduPilotSimulator(load_scenario({str(ROOT / 'sitl' / 'scenarios' / 'patrol.yaml')!r}), 1)\n"
+        "print(sim.process.proc.pid, flush=True)\n"
+        "time.sleep(60)\n")
+    starter = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True, cwd=ROOT)
+    try:
+        pid = int(starter.stdout.readline())
+        assert Path(f"/proc/{pid}").exists()
+    finally:
+        starter.kill()
+        starter.wait()
+    for _ in range(50):
+        if not Path(f"/proc/{pid}").exists() or "Z" in Path(f"/proc/{pid}/stat").read_text().split()[2]:
+            break
+        time.sleep(0.1)
+    else:
+        os.kill(pid, 9)
+        pytest.fail("arducopter outlived the process that started it")
