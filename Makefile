@@ -15,8 +15,9 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/chaser-bt rehearse trees/chase.yaml --scenario sitl/scenarios/chase.yaml --seed 1 --report out/demo --progress always
 
+# One worker per core; a test file stays on one worker (its servers, ports and Ray clusters are its own).
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n auto --dist loadfile
 
 test-fast: $(STAMP)
 	$(BIN)/python -m pytest -q -m "not slow"
