@@ -7,6 +7,7 @@ lock-step in one thread on simulated time.
 
 from __future__ import annotations
 
+import abc
 from typing import Any, Callable
 
 import py_trees
@@ -22,15 +23,16 @@ from sitl.world.scenario import Scenario
 __all__ = ["InProcessVehicle", "LockStepVehicle"]
 
 
-class LockStepVehicle:
+class LockStepVehicle(abc.ABC):
     """What a rehearsal flies: ``sim`` (world clock ``sim.time_s``, truth), ``link``, ``clock`` and ``step()``."""
 
     sim: Any
     link: VehicleLink
     clock: FunctionClock
 
+    @abc.abstractmethod
     def step(self) -> None:
-        raise NotImplementedError
+        """Advance the simulator one physics step and let the link read what arrived."""
 
     def run_until(self, predicate: Callable[[], bool], timeout_s: float) -> bool:
         """Step until ``predicate()`` holds (True) or ``timeout_s`` of sim time pass (False)."""

@@ -25,6 +25,7 @@ from typing import Callable
 import numpy as np
 import py_trees
 
+from chaser_bt.cli_args import AUTOPILOTS
 from chaser_bt.log.trace import FlightTrace
 from chaser_bt.mission.runner import MissionRunner, StatusChange
 from chaser_bt.tree import MissionTree, load_tree, reset_blackboard
@@ -278,8 +279,6 @@ class AutopilotChoice:
         if self.name not in AUTOPILOTS:
             raise ValueError(f"autopilot {self.name!r}: expected one of {', '.join(AUTOPILOTS)}")
 
-
-AUTOPILOTS = ("builtin", "ardupilot")
 
 
 def _vehicle(scenario: Scenario, seed: int, link_config: LinkConfig | None, ground_tap, choice: AutopilotChoice):

@@ -201,3 +201,11 @@ def test_arducopter_dies_with_the_process_that_started_it(tmp_path):
     else:
         os.kill(pid, 9)
         pytest.fail("arducopter outlived the process that started it")
+
+
+def test_the_command_line_offers_exactly_the_rotor_airframes():
+    """cli_args cannot import the simulator, so it names the airframes itself: they must stay the same."""
+    from chaser_bt.cli_args import AIRFRAMES as CLI_AIRFRAMES
+    from sitl.vehicle.rotor_body import AIRFRAMES
+
+    assert set(CLI_AIRFRAMES) == set(AIRFRAMES)
