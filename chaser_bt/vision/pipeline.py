@@ -74,6 +74,10 @@ class PipelineConfig:
         full_frame_every: without a cue, every k-th detector frame sees the whole frame even with a focus.
         cue_gate_deg: a track's bearing may differ from the cue's by this much, plus three sigma of the
             cue's position error seen from the camera.
+        cue_range_ratio: a track whose box-size range is shorter than the cue's distance divided by
+            this, or longer than it times this (each widened by three sigma of the cue), is not the
+            target: something near the camera on the cue's bearing (clutter, a cloud's edge). Boxes of
+            a target a few pixels wide read it up to 4x short (the detector's smallest box), hence 5.
         detector_input_px: the detector's square input (the focus window's size in detector pixels).
         track_margin_px: the part of a frame the trackers read around a track's box: this much on each
             side, or the box's own size if larger (:attr:`FramePlan.regions`).
@@ -105,6 +109,7 @@ class PipelineConfig:
     focus_min_zoom: float = 1.25
     full_frame_every: int = 3
     cue_gate_deg: float = 4.0
+    cue_range_ratio: float = 5.0
     detector_input_px: int = 416
     track_margin_px: float = 64.0
 
@@ -305,7 +310,9 @@ class VisionPipeline:
 
     def _gate(self, tracks: list[Track], attitude: Rotation, camera_enu: np.ndarray, cue_enu: np.ndarray,
               cue_cov: np.ndarray) -> list[Track]:
-        """The tracks whose bearing is within the gate of the cue's bearing from the camera."""
+        """The tracks whose bearing is within the gate of the cue's bearing from the camera and whose
+        box-size range (for a class of known size) agrees with the cue's distance within
+        ``cue_range_ratio``."""
         to_cue = cue_enu - camera_enu
         dist = float(np.linalg.norm(to_cue))
         if dist <= 1e-6:
@@ -314,7 +321,18 @@ class VisionPipeline:
         gate = math.radians(self.config.cue_gate_deg) + math.atan2(3.0 * sigma, dist)
         bearings = self.projector.bearing_enu(np.array([tr.centre for tr in tracks]), attitude)
         cos = np.clip(bearings @ (to_cue / dist), -1.0, 1.0)
-        return [tr for tr, c in zip(tracks, cos) if math.acos(float(c)) <= gate]
+        k = self.config.cue_range_ratio
+        near, far = dist / k - 3.0 * sigma, dist * k + 3.0 * sigma
+        cx, fx = 0.5 * self.camera.width_px, self.camera.focal_px[0]
+        kept = []
+        for tr, c in zip(tracks, cos):
+            if math.acos(float(c)) > gate:
+                continue
+            span = TARGET_SPAN_M.get(tr.class_name)
+            if span is not None and not near <= range_from_box(tr.box, span, cx, fx) <= far:
+                continue
+            kept.append(tr)
+        return kept
 
     def _select(self, tracks: list[Track], attitude: Rotation, t: float) -> Track:
         """The current track while it lives; else, shortly after an estimate, the track nearest its

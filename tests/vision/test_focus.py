@@ -140,3 +140,20 @@ def test_tracks_far_from_the_cue_are_not_the_target():
     loose = _cue_at((100.0, 400.0), 60.0, sigma_m=40.0)
     pipe = VisionPipeline(CAM, _BlobDetector(), PipelineConfig(detect_every=1, tracker_kinds=(), focus=False))
     assert [pipe.process(_frame(k), POSE, cue=loose) for k in range(3)][-1] is not None
+
+
+def test_a_track_whose_box_range_disagrees_with_the_cue_s_distance_is_not_the_target():
+    # The 6 px square read as an S1000 (1.42 m across): its box-size range, worked out by hand.
+    fx = 320.0 / math.tan(math.radians(47.5))
+    box_range = 1.42 / (math.atan((406 - 320) / fx) - math.atan((400 - 320) / fx))
+    assert 60.0 < box_range < 80.0
+    # Cues on the square's bearing (1 m sigma) at several distances: the gate keeps ratios up to 5.
+    for cue_range, seen in ((box_range, True), (4.0 * box_range, True), (0.3 * box_range, True),
+                            (6.0 * box_range, False), (0.15 * box_range, False)):
+        pipe = VisionPipeline(CAM, _BlobDetector(), PipelineConfig(detect_every=1, tracker_kinds=(), focus=False))
+        ests = [pipe.process(_frame(k), POSE, cue=_cue_at((403.0, 203.0), cue_range)) for k in range(3)]
+        assert (ests[-1] is not None) is seen, cue_range
+    # A cue far uncertain widens it: 6x the range but 300 m sigma.
+    pipe = VisionPipeline(CAM, _BlobDetector(), PipelineConfig(detect_every=1, tracker_kinds=(), focus=False))
+    cue = _cue_at((403.0, 203.0), 6.0 * box_range, sigma_m=300.0)
+    assert [pipe.process(_frame(k), POSE, cue=cue) for k in range(3)][-1] is not None
