@@ -1,4 +1,5 @@
-"""ArmAndTakeoff: GUIDED, arm, take off, and succeed once the target altitude is reached."""
+"""ArmAndTakeoff: GUIDED, arm, take off, and succeed once the target altitude is reached; with a cue to
+fly towards, the climb turns towards it once clear of the ground (paper state 2)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,13 @@ import enum
 
 import py_trees
 
-from behaviours.base import CommandingBehaviour, state_port
+import math
+
+import numpy as np
+
+from behaviours.base import CommandingBehaviour, optional_input, state_port
+from chaser_bt.control.cue_approach import approach_point
+from chaser_bt.cue import TargetCue
 from chaser_bt.tree import input_port, register_behaviour
 from chaser_bt.vehicle import Command
 
@@ -29,17 +36,35 @@ class ArmAndTakeoff(CommandingBehaviour):
     with a position target, since ArduCopter refuses a takeoff command in flight. Once in GUIDED,
     a change to any other mode (a failsafe RTL, the pilot's switch) fails it at once: the climb
     is no longer ours to report.
+
+    With ``toward`` set (a radar cue, say), the climb does not stay over the take-off point: once
+    airborne and ``clearance_m`` up, while the cue is fresh, the goal is the point ``standoff_m``
+    short of it at ``altitude_m`` (re-sent as the cue moves), so the aircraft climbs and closes on
+    the target at once (paper 2.2.1: in state 2 "the information from the radar can update the
+    latitude and longitude to fly towards"); ArduCopter's GUIDED shapes the climb and the horizontal
+    leg independently, so the altitude comes no later. A cue gone stale: climb where it is.
     """
 
     INPUT_PORTS = {
         "altitude_m": input_port(float, "Take-off altitude above home (m)", default=20.0, above=0),
         "tolerance_m": input_port(float, "Altitude counted as reached within this (m)", default=1.0, minimum=0),
+        "toward": input_port(TargetCue, "Climb towards this cue once clear of the ground (unset: straight up)",
+                             required=False),
+        "clearance_m": input_port(float, "Height above home before the climb turns towards the cue (m)",
+                                  default=10.0, minimum=0),
+        "standoff_m": input_port(float, "Head for the point this far short of the cue, horizontally (m)",
+                                 default=20.0, minimum=0),
+        "max_cue_age_s": input_port(float, "An older cue is not flown towards (s)", default=2.0, minimum=0),
+        "speed_mps": input_port(float, "Horizontal speed towards the cue (m/s); 0 keeps WPNAV_SPEED",
+                                default=0.0, minimum=0),
         "state": state_port(),
     }
     OUTPUT_PORTS: dict = {}
 
     def initialise(self) -> None:
         self._command: Command | None = None
+        self._sent_goal: np.ndarray | None = None  # the last goal sent towards the cue
+        self._sent_at = -math.inf
         self._guided = self.state.mode == "GUIDED"  # from here on, leaving GUIDED fails the take-off
         if self.state.airborne:
             self._phase = _Phase.CLIMB
@@ -89,8 +114,30 @@ class ArmAndTakeoff(CommandingBehaviour):
         if state.alt_rel_m >= altitude - self.get_input("tolerance_m"):
             self.feedback_message = f"at {state.alt_rel_m:.1f} m"
             return Status.SUCCESS
-        self.feedback_message = f"climbing: {state.alt_rel_m:.1f} / {altitude:.1f} m"
+        self.feedback_message = f"climbing: {state.alt_rel_m:.1f} / {altitude:.1f} m{self._steer(altitude)}"
         return Status.RUNNING
+
+    def _steer(self, altitude: float) -> str:
+        """Send the climb towards the cue (see the class docstring); the feedback's tail."""
+        state, cue = self.state, optional_input(self, "toward")
+        if cue is None or not state.airborne or state.alt_rel_m < self.get_input("clearance_m"):
+            return ""
+        now = self._now()
+        if cue.age(now) > self.get_input("max_cue_age_s"):
+            if self._sent_goal is not None:  # stop closing on a lost cue; keep climbing
+                pos = state.position_enu
+                self._link().goto_enu([pos[0], pos[1], altitude])
+                self._sent_goal = None
+            return ", cue lost"
+        plan = approach_point(state.position_enu, cue.position_enu, standoff_m=self.get_input("standoff_m"),
+                              min_alt_m=altitude, height_above_m=-math.inf)
+        moved = math.inf if self._sent_goal is None else float(np.linalg.norm(plan.goal_enu - self._sent_goal))
+        if moved > 5.0 or now - self._sent_at >= 1.0:
+            if self._sent_goal is None and self.get_input("speed_mps") > 0:
+                self._link().set_speed(self.get_input("speed_mps"))
+            self._link().goto_enu(plan.goal_enu, plan.yaw_enu_rad)
+            self._sent_goal, self._sent_at = plan.goal_enu, now
+        return f", {plan.distance_m:.0f} m to the cue's standoff point"
 
 
 _NEXT = {_Phase.GUIDED: _Phase.ARM, _Phase.ARM: _Phase.TAKEOFF, _Phase.TAKEOFF: _Phase.CLIMB}

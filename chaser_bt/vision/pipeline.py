@@ -74,8 +74,8 @@ class PipelineConfig:
         full_frame_every: without a cue, every k-th detector frame sees the whole frame even with a focus.
         cue_gate_deg: a track's bearing may differ from the cue's by this much, plus three sigma of the
             cue's position error seen from the camera.
-        cue_range_ratio: a track whose box-size range is shorter than the cue's distance divided by
-            this, or longer than it times this (each widened by three sigma of the cue), is not the
+        cue_range_ratio: a track whose box-size range is shorter than the cue's distance less three
+            sigma divided by this, or longer than its distance plus three sigma times this, is not the
             target: something near the camera on the cue's bearing (clutter, a cloud's edge). Boxes of
             a target a few pixels wide read it up to 4x short (the detector's smallest box), hence 5.
         detector_input_px: the detector's square input (the focus window's size in detector pixels).
@@ -322,7 +322,7 @@ class VisionPipeline:
         bearings = self.projector.bearing_enu(np.array([tr.centre for tr in tracks]), attitude)
         cos = np.clip(bearings @ (to_cue / dist), -1.0, 1.0)
         k = self.config.cue_range_ratio
-        near, far = dist / k - 3.0 * sigma, dist * k + 3.0 * sigma
+        near, far = max(dist - 3.0 * sigma, 0.0) / k, (dist + 3.0 * sigma) * k
         cx, fx = 0.5 * self.camera.width_px, self.camera.focal_px[0]
         kept = []
         for tr, c in zip(tracks, cos):

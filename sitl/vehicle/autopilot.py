@@ -333,6 +333,7 @@ class Autopilot:
         """Run the position controller; ``roll``/``pitch`` given = pilot-set lean (no xy control)."""
         ph = self.phys
         pc = self.pc
+        pc.jerk_z = self.p["PSC_JERK_Z"]
         if roll is None or pitch is None:
             pc.jerk_xy = self.p["PSC_JERK_XY"]
             roll, pitch = pc.update_xy(dt, self.ex, self.ey, self.evx, self.evy, ph.yaw, self.angle_max)

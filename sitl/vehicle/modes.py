@@ -43,7 +43,6 @@ VEL_Z_IMAX = 4.0  # m/s^2
 # quad) that is 1.26 and 2.5 /s of extra acceleration per m/s^2 of acceleration error
 ACC_Z_P = 1.26
 ACC_Z_I = 2.5
-SHAPE_P = 1.5  # target shaping: final-approach bandwidth, 1/s
 YAW_P = 3.0
 AUTO_YAW_RATE_MAX = math.radians(90.0)
 BRAKE_ACCEL = 7.5  # ArduCopter BRAKE_MODE_DECEL_RATE, m/s^2
@@ -74,6 +73,15 @@ def sqrt_controller(error: float, p: float, accel_max: float, dt: float = 0.0) -
         cap = abs(error) / dt
         out = min(max(out, -cap), cap)
     return out
+
+
+def shape_vel_accel(v: float, tv: float, ta: float, accel_max: float, jerk_max: float, dt: float) -> float:
+    """The target acceleration one step on, jerk-limited towards velocity ``v`` (ArduPilot shape_vel_accel,
+    one axis, limits symmetric): a sqrt controller of gain jerk/accel on the velocity error, limited to
+    ``accel_max``, approached by at most ``jerk_max * dt``."""
+    at = min(max(sqrt_controller(v - tv, jerk_max / accel_max, jerk_max, dt), -accel_max), accel_max)
+    step = jerk_max * dt
+    return ta + min(max(at - ta, -step), step)
 
 
 def shape_vel_accel_xy(vx: float, vy: float, tvx: float, tvy: float, tax: float, tay: float,
@@ -158,7 +166,8 @@ class PositionController:
     input_pos_vel_accel_xy / shape_pos_vel_accel_xy): its acceleration changes by at most
     ``jerk_xy`` (PSC_JERK_XY) per second, and a position goal is approached by a sqrt controller
     of gain jerk/(2 accel) braking at half the acceleration limit, which is what keeps a GUIDED
-    leg from overshooting its corner. The vertical target is slew-limited in acceleration only.
+    leg from overshooting its corner. The vertical target is shaped the same way in one dimension
+    (``jerk_z``, PSC_JERK_Z; a height goal braked at half ``accel_z``).
     """
 
     def __init__(self, mass_kg: float, max_thrust_n: float) -> None:
@@ -167,6 +176,7 @@ class PositionController:
         self.tpx = self.tpy = self.tvx = self.tvy = 0.0
         self.tax = self.tay = 0.0
         self.jerk_xy = 5.0  # m/s^3, PSC_JERK_XY
+        self.jerk_z = 5.0  # m/s^3, PSC_JERK_Z
         self._limit = (0.0, 0.0)  # the lean-limited acceleration, when the limit holds
         self._pos_err = self._vel_err = (0.0, 0.0)
         self.gx = self.gy = 0.0
@@ -176,7 +186,7 @@ class PositionController:
         self.accel_xy = 1.0
         self.ix = self.iy = 0.0
         self.tpz = self.tvz = 0.0
-        self._taz = 0.0
+        self.taz = 0.0
         self.ia = 0.0
         self._last_vz = 0.0
         self.gz = 0.0
@@ -193,7 +203,7 @@ class PositionController:
         """Targets at the present state, integrators cleared, holding velocity then stopping."""
         self.tpx, self.tpy, self.tpz = px, py, pz
         self.tvx, self.tvy, self.tvz = vx, vy, vz
-        self.tax = self.tay = 0.0
+        self.tax = self.tay = self.taz = 0.0
         self._limit = (0.0, 0.0)
         self.ix = self.iy = self.iz = self.ia = 0.0
         self._last_vz = vz
@@ -237,7 +247,7 @@ class PositionController:
         the target's position becomes the goal held once the trajectory stops calling."""
         self.tpx, self.tpy, self.tpz = pos
         self.tvx, self.tvy, self.tvz = vel
-        self.tax, self.tay, self._taz = accel
+        self.tax, self.tay, self.taz = accel
         self.gx, self.gy, self.gz = pos
         self.xy_pos_goal = self.z_pos_goal = True
         self.xy_external = self.z_external = True
@@ -312,19 +322,23 @@ class PositionController:
     def _shape_z(self, dt: float) -> float:
         if self.z_external:
             self.z_external = False
-            return self._taz
+            return self.taz
+        # as the horizontal: move the target with its acceleration, then reshape that acceleration
+        # (AC_PosControl input_vel_accel_z / input_pos_vel_accel_z with PSC_JERK_Z)
+        a = self.taz
+        self.tpz += (self.tvz + 0.5 * a * dt) * dt
+        self.tvz += a * dt
+        accel, jerk = self.accel_z, self.jerk_z
         if self.z_pos_goal:
             e = self.gz - self.tpz
-            if abs(e) < 1e-3 and abs(self.tvz) < 1e-2:
-                self.tpz, self.tvz = self.gz, 0.0
+            if abs(e) < 1e-3 and abs(self.tvz) < 1e-2 and abs(a) < 1e-2:
+                self.tpz, self.tvz, self.taz = self.gz, 0.0, 0.0
                 return 0.0
-            vg = min(max(sqrt_controller(e, SHAPE_P, self.accel_z), -self.speed_dn), self.speed_up)
+            vg = min(max(sqrt_controller(e, 0.5 * jerk / accel, 0.5 * accel, dt), -self.speed_dn), self.speed_up)
         else:
             vg = self.gz
-        dv = min(max(vg - self.tvz, -self.accel_z * dt), self.accel_z * dt)
-        self.tvz += dv
-        self.tpz += self.tvz * dt
-        return dv / dt
+        self.taz = shape_vel_accel(vg, self.tvz, a, accel, jerk, dt)
+        return self.taz
 
     def update_z(self, dt: float, pz: float, vz: float, roll: float, pitch: float) -> float:
         """Advance the vertical target and return the thrust (N) that tracks it.
@@ -721,7 +735,7 @@ class Guided(FlightMode):
                 thrust = min(max(self.att_thrust, 0.0), 1.0) * ap.airframe.max_thrust_n
                 yaw_rate = pc.update_yaw(dt, ap.phys.yaw, AUTO_YAW_RATE_MAX + abs(pc.yaw_rate_ff))
                 ap.output(roll, pitch, yaw_rate, thrust)
-                pc.tpz, pc.tvz = ap.ez, ap.evz  # bumpless hand-back to climb-rate control
+                pc.tpz, pc.tvz, pc.taz = ap.ez, ap.evz, 0.0  # bumpless hand-back to climb-rate control
                 return
             t = min(max(self.att_thrust, 0.0), 1.0)
             scale = p["WPNAV_SPEED_UP"] if t >= 0.5 else p["WPNAV_SPEED_DN"]

@@ -77,6 +77,7 @@ PARAM_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("WPNAV_RADIUS", 200, _F, "cm", "distance at which a waypoint counts as reached"),
     ParamSpec("WPNAV_JERK", 1.0, _F, "m/s/s/s", "jerk of the waypoint S-curves (RTL's legs)"),
     ParamSpec("PSC_JERK_XY", 5.0, _F, "m/s/s/s", "jerk limit of the horizontal position controller's target shaping"),
+    ParamSpec("PSC_JERK_Z", 5.0, _F, "m/s/s/s", "jerk limit of the vertical position controller's target shaping"),
     ParamSpec("LOIT_SPEED", 1250, _F, "cm/s", "maximum horizontal speed in LOITER"),
     ParamSpec("LOIT_ACC_MAX", 500, _F, "cm/s/s", "maximum horizontal acceleration in LOITER"),
     ParamSpec("LOIT_BRK_ACCEL", 250, _F, "cm/s/s", "LOITER braking acceleration when the sticks centre"),

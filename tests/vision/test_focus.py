@@ -149,7 +149,7 @@ def test_a_track_whose_box_range_disagrees_with_the_cue_s_distance_is_not_the_ta
     assert 60.0 < box_range < 80.0
     # Cues on the square's bearing (1 m sigma) at several distances: the gate keeps ratios up to 5.
     for cue_range, seen in ((box_range, True), (4.0 * box_range, True), (0.3 * box_range, True),
-                            (6.0 * box_range, False), (0.15 * box_range, False)):
+                            (6.0 * box_range, False), (0.1 * box_range, False)):
         pipe = VisionPipeline(CAM, _BlobDetector(), PipelineConfig(detect_every=1, tracker_kinds=(), focus=False))
         ests = [pipe.process(_frame(k), POSE, cue=_cue_at((403.0, 203.0), cue_range)) for k in range(3)]
         assert (ests[-1] is not None) is seen, cue_range
