@@ -38,11 +38,12 @@ class ArmAndTakeoff(CommandingBehaviour):
     is no longer ours to report.
 
     With ``toward`` set (a radar cue, say), the climb does not stay over the take-off point: once
-    airborne and ``clearance_m`` up, while the cue is fresh, the goal is the point ``standoff_m``
-    short of it at ``altitude_m`` (re-sent as the cue moves), so the aircraft climbs and closes on
-    the target at once (paper 2.2.1: in state 2 "the information from the radar can update the
-    latitude and longitude to fly towards"); ArduCopter's GUIDED shapes the climb and the horizontal
-    leg independently, so the altitude comes no later. A cue gone stale: climb where it is.
+    airborne and ``clearance_m`` up, while the cue is fresh, it flies GUIDED velocity set-points,
+    up at ``climb_mps`` and across at up to ``speed_mps`` towards the point ``standoff_m`` short of
+    the cue, nose on it (paper 2.2.1: in state 2 "the information from the radar can update the
+    latitude and longitude to fly towards"). Velocity, not a position goal: ArduCopter takes a GUIDED
+    position target along a straight 3D line (AC_PosControl::input_pos_xyz), which on a 300 m leg
+    would climb at 1 m/s. A cue gone stale: climb where it is.
     """
 
     INPUT_PORTS = {
@@ -55,16 +56,16 @@ class ArmAndTakeoff(CommandingBehaviour):
         "standoff_m": input_port(float, "Head for the point this far short of the cue, horizontally (m)",
                                  default=20.0, minimum=0),
         "max_cue_age_s": input_port(float, "An older cue is not flown towards (s)", default=2.0, minimum=0),
-        "speed_mps": input_port(float, "Horizontal speed towards the cue (m/s); 0 keeps WPNAV_SPEED",
-                                default=0.0, minimum=0),
+        "speed_mps": input_port(float, "Horizontal speed towards the cue (m/s)", default=10.0, above=0),
+        "climb_mps": input_port(float, "Climb rate while flying towards the cue (m/s; the autopilot's "
+                                       "WPNAV_SPEED_UP, ArduCopter's default 2.5)", default=2.5, above=0),
         "state": state_port(),
     }
     OUTPUT_PORTS: dict = {}
 
     def initialise(self) -> None:
         self._command: Command | None = None
-        self._sent_goal: np.ndarray | None = None  # the last goal sent towards the cue
-        self._sent_at = -math.inf
+        self._steering = False  # flying velocity set-points towards the cue
         self._guided = self.state.mode == "GUIDED"  # from here on, leaving GUIDED fails the take-off
         if self.state.airborne:
             self._phase = _Phase.CLIMB
@@ -122,22 +123,21 @@ class ArmAndTakeoff(CommandingBehaviour):
         state, cue = self.state, optional_input(self, "toward")
         if cue is None or not state.airborne or state.alt_rel_m < self.get_input("clearance_m"):
             return ""
-        now = self._now()
-        if cue.age(now) > self.get_input("max_cue_age_s"):
-            if self._sent_goal is not None:  # stop closing on a lost cue; keep climbing
-                pos = state.position_enu
-                self._link().goto_enu([pos[0], pos[1], altitude])
-                self._sent_goal = None
-            return ", cue lost"
+        climb = min(self.get_input("climb_mps"), max(altitude - state.alt_rel_m, 0.5))
+        if cue.age(self._now()) > self.get_input("max_cue_age_s"):
+            if not self._steering:  # never turned: the take-off's own climb goes on
+                return ""
+            self._link().velocity_enu([0.0, 0.0, climb])
+            return ", cue lost: straight up"
+        self._steering = True
         plan = approach_point(state.position_enu, cue.position_enu, standoff_m=self.get_input("standoff_m"),
                               min_alt_m=altitude, height_above_m=-math.inf)
-        moved = math.inf if self._sent_goal is None else float(np.linalg.norm(plan.goal_enu - self._sent_goal))
-        if moved > 5.0 or now - self._sent_at >= 1.0:
-            if self._sent_goal is None and self.get_input("speed_mps") > 0:
-                self._link().set_speed(self.get_input("speed_mps"))
-            self._link().goto_enu(plan.goal_enu, plan.yaw_enu_rad)
-            self._sent_goal, self._sent_at = plan.goal_enu, now
-        return f", {plan.distance_m:.0f} m to the cue's standoff point"
+        across = plan.goal_enu[:2] - state.position_enu[:2]
+        dist = float(np.hypot(*across))
+        speed = min(self.get_input("speed_mps"), 0.5 * dist)  # slow down over the last 2 s
+        v = across * (speed / dist) if dist > 1e-6 else np.zeros(2)
+        self._link().velocity_enu([v[0], v[1], climb], yaw_enu_rad=plan.yaw_enu_rad)
+        return f", {dist:.0f} m to the cue's standoff point"
 
 
 _NEXT = {_Phase.GUIDED: _Phase.ARM, _Phase.ARM: _Phase.TAKEOFF, _Phase.TAKEOFF: _Phase.CLIMB}

@@ -75,6 +75,19 @@ def sqrt_controller(error: float, p: float, accel_max: float, dt: float = 0.0) -
     return out
 
 
+def kinematic_limit(dx: float, dy: float, dz: float, max_xy: float, max_up: float, max_dn: float) -> float:
+    """The largest speed along the direction (dx, dy, dz) that keeps its horizontal part within
+    ``max_xy`` and its vertical part within ``max_up`` / ``max_dn`` (ArduPilot kinematic_limit)."""
+    n = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if n <= 0.0 or max_xy <= 0.0 or max_up <= 0.0 or max_dn <= 0.0:
+        return 0.0
+    xy, z = math.hypot(dx, dy) / n, dz / n
+    if xy <= 0.0:
+        return max_up if z > 0.0 else max_dn
+    vz_max = max_up if z > 0.0 else max_dn
+    return max_xy / xy if abs(z) / xy < vz_max / max_xy else vz_max / abs(z)
+
+
 def shape_vel_accel(v: float, tv: float, ta: float, accel_max: float, jerk_max: float, dt: float) -> float:
     """The target acceleration one step on, jerk-limited towards velocity ``v`` (ArduPilot shape_vel_accel,
     one axis, limits symmetric): a sqrt controller of gain jerk/accel on the velocity error, limited to
@@ -181,6 +194,8 @@ class PositionController:
         self._pos_err = self._vel_err = (0.0, 0.0)
         self.gx = self.gy = 0.0
         self.xy_pos_goal = False
+        self.line = False  # a 3D goal approached on a straight line (set_pos_xyz)
+        self._line_xy = self._line_z = 0.0  # this step's speed limits along that line
         self.xy_external = self.z_external = False  # targets set by a trajectory this step, not shaped
         self.speed_xy = 1.0
         self.accel_xy = 1.0
@@ -207,14 +222,25 @@ class PositionController:
         self._limit = (0.0, 0.0)
         self.ix = self.iy = self.iz = self.ia = 0.0
         self._last_vz = vz
-        self.xy_pos_goal = self.z_pos_goal = False
+        self.xy_pos_goal = self.z_pos_goal = self.line = False
         self.xy_external = self.z_external = False
         self.gx = self.gy = self.gz = 0.0
         self.yaw_target = yaw
         self.yaw_rate_ff = 0.0
 
+    def set_pos_xyz(self, x: float, y: float, z: float, speed: float, speed_up: float, speed_dn: float,
+                    accel: float, accel_z: float) -> None:
+        """Fly to (x, y, z) on a straight line and hold it (AC_PosControl input_pos_xyz, ArduCopter's
+        GUIDED position target): each step the horizontal and vertical speed limits are those of the
+        fastest speed along the line to the goal that keeps within ``speed`` across and ``speed_up`` /
+        ``speed_dn`` vertically, so both axes arrive together."""
+        self.set_pos_xy(x, y, speed, accel)
+        self.set_alt(z, speed_up, speed_dn, accel_z)
+        self.line = True
+
     def set_pos_xy(self, x: float, y: float, speed: float, accel: float) -> None:
         """Fly to (x, y) at up to ``speed`` m/s, ``accel`` m/s^2, and hold it."""
+        self.line = False
         self.xy_external = False
         self.xy_pos_goal = True
         self.gx, self.gy = x, y
@@ -222,6 +248,7 @@ class PositionController:
 
     def set_vel_xy(self, vx: float, vy: float, accel: float) -> None:
         """Fly at (vx, vy), reached at ``accel`` m/s^2."""
+        self.line = False
         self.xy_external = False
         self.xy_pos_goal = False
         self.gx, self.gy = vx, vy
@@ -229,6 +256,7 @@ class PositionController:
 
     def set_alt(self, z: float, speed_up: float, speed_dn: float, accel: float) -> None:
         """Climb or descend to ENU height ``z`` and hold it."""
+        self.line = False
         self.z_external = False
         self.z_pos_goal = True
         self.gz = z
@@ -236,6 +264,7 @@ class PositionController:
 
     def set_climb(self, vz: float, accel: float) -> None:
         """Climb at ``vz`` m/s (negative descends), reached at ``accel`` m/s^2."""
+        self.line = False
         self.z_external = False
         self.z_pos_goal = False
         self.gz = vz
@@ -250,6 +279,7 @@ class PositionController:
         self.tax, self.tay, self.taz = accel
         self.gx, self.gy, self.gz = pos
         self.xy_pos_goal = self.z_pos_goal = True
+        self.line = False
         self.xy_external = self.z_external = True
 
     def xy_reached(self) -> bool:
@@ -283,6 +313,11 @@ class PositionController:
         self.tvx += dvx
         self.tvy += dvy
         accel, jerk = self.accel_xy, self.jerk_xy
+        if self.line:
+            dx, dy, dz = self.gx - self.tpx, self.gy - self.tpy, self.gz - self.tpz
+            n = math.sqrt(dx * dx + dy * dy + dz * dz)
+            v = kinematic_limit(dx, dy, dz, self.speed_xy, self.speed_up, self.speed_dn)
+            self._line_xy, self._line_z = (v * math.hypot(dx, dy) / n, abs(v * dz / n)) if n > 0.0 else (0.0, 0.0)
         if self.xy_pos_goal:
             ex, ey = self.gx - self.tpx, self.gy - self.tpy
             d = math.sqrt(ex * ex + ey * ey)
@@ -290,7 +325,7 @@ class PositionController:
                 self.tpx, self.tpy, self.tvx, self.tvy, self.tax, self.tay = self.gx, self.gy, 0.0, 0.0, 0.0, 0.0
                 return 0.0, 0.0
             # braking at half the acceleration limit leaves the other half for the turn onto the next leg
-            v = min(sqrt_controller(d, 0.5 * jerk / accel, 0.5 * accel, dt), self.speed_xy)
+            v = min(sqrt_controller(d, 0.5 * jerk / accel, 0.5 * accel, dt), self._line_xy if self.line else self.speed_xy)
             s = v / d if d > 1e-9 else 0.0
             vgx, vgy = ex * s, ey * s
         else:
@@ -334,7 +369,8 @@ class PositionController:
             if abs(e) < 1e-3 and abs(self.tvz) < 1e-2 and abs(a) < 1e-2:
                 self.tpz, self.tvz, self.taz = self.gz, 0.0, 0.0
                 return 0.0
-            vg = min(max(sqrt_controller(e, 0.5 * jerk / accel, 0.5 * accel, dt), -self.speed_dn), self.speed_up)
+            down, up = (self._line_z, self._line_z) if self.line else (self.speed_dn, self.speed_up)
+            vg = min(max(sqrt_controller(e, 0.5 * jerk / accel, 0.5 * accel, dt), -down), up)
         else:
             vg = self.gz
         self.taz = shape_vel_accel(vg, self.tvz, a, accel, jerk, dt)
@@ -661,8 +697,8 @@ class Guided(FlightMode):
         self.sub = GuidedSubmode.POS
         p = ap.p
         pc = ap.pc
-        pc.set_pos_xy(x, y, self.speed_xy(ap), p["WPNAV_ACCEL"] * 0.01)
-        pc.set_alt(z, p["WPNAV_SPEED_UP"] * 0.01, p["WPNAV_SPEED_DN"] * 0.01, p["WPNAV_ACCEL_Z"] * 0.01)
+        pc.set_pos_xyz(x, y, z, self.speed_xy(ap), p["WPNAV_SPEED_UP"] * 0.01, p["WPNAV_SPEED_DN"] * 0.01,
+                       p["WPNAV_ACCEL"] * 0.01, p["WPNAV_ACCEL_Z"] * 0.01)
         pc.yaw_rate_ff = 0.0
         if yaw is not None:
             pc.yaw_target = yaw

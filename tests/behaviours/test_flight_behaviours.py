@@ -156,3 +156,41 @@ def test_goto_refuses_a_two_number_waypoint_from_the_blackboard_and_hovers(vehic
     assert status == Status.FAILURE
     assert "waypoint needs 3 items, got 2: [20.0, 0.0]" in runner.tip_message()
     assert np.linalg.norm(horizontal(vehicle.sim.truth.pos_enu) - start) < 1.5
+
+
+def _climb_track(vehicle, body: str) -> tuple[Status, list[np.ndarray]]:
+    """Fly ``body`` to the end, sampling the true position at every tick."""
+    runner = runner_for(vehicle, body)
+    track: list[np.ndarray] = []
+    runner.on_tick(lambda _changes: track.append(vehicle.sim.truth.pos_enu.copy()))
+    status = vehicle.fly(runner, 150.0)
+    assert status == Status.SUCCESS, runner.tip_message()
+    return status, track
+
+
+def test_arm_and_takeoff_climbs_towards_a_cue_once_clear_of_the_ground(scenario):
+    """Paper state 2: the radar cue updates where to fly while the climb goes on."""
+    from chaser_bt.cue import TargetCue
+
+    straight = InProcessVehicle(scenario, seed=7)
+    _, up = _climb_track(straight, "ArmAndTakeoff: {altitude_m: 30}")
+    assert np.linalg.norm(horizontal(up[-1])) < 1.0
+
+    cue = TargetCue(t=0.0, position_enu=np.array([0.0, 300.0, 30.0]), covariance_enu=np.eye(3), source="radar")
+    for max_age, steered in ((1e6, True), (0.5, False)):  # a fresh cue, then one already stale
+        v = InProcessVehicle(scenario, seed=7)
+        py_trees.blackboard.Blackboard.storage["/target/cue"] = cue
+        _, track = _climb_track(v, f"ArmAndTakeoff: {{altitude_m: 30, toward: '{{@target/cue}}', clearance_m: 10,"
+                                   f" standoff_m: 20, speed_mps: 12, max_cue_age_s: {max_age}}}")
+        end = track[-1]
+        assert end[2] >= 29.0
+        if not steered:
+            assert np.linalg.norm(horizontal(end)) < 1.0
+            continue
+        # Towards the cue (north), and not a metre sideways before 10 m up (give the 0.1 s tick
+        # and the lean's first metre half a metre of height).
+        assert end[1] > 20.0 and abs(end[0]) < 0.1 * end[1]
+        first_move = next(p for p in track if np.linalg.norm(horizontal(p)) > 1.0)
+        assert first_move[2] > 9.5
+        # The altitude came no later than straight up: the axes are shaped independently.
+        assert len(track) <= len(up) + 5

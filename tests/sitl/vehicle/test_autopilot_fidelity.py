@@ -92,6 +92,29 @@ def test_position_target_speeds_up_at_the_jerk_limit_and_stops_on_the_goal():
     assert pc.tpx == pytest.approx(100.0, abs=0.01) and pc.tvx == pytest.approx(0.0, abs=0.01)
 
 
+def test_a_guided_position_target_is_flown_on_a_straight_3d_line(airborne, run_for):
+    """AC_PosControl::input_pos_xyz: 280 m north and 20 m up at WPNAV_SPEED 10 m/s and WPNAV_SPEED_UP
+    2.5 m/s. The line rises 20 m in 280 m (slope 0.071, under 2.5 / 10), so the horizontal limit binds:
+    10 m/s across and 10 * 20 / 280 = 0.714 m/s up, and both axes arrive together. Shaped axis by axis,
+    it would climb at 2.5 m/s and be up in 9 s."""
+    ap = airborne(10.0)
+    ap.set_position_target([0.0, 280.0, 30.0])
+    track = []
+    run_for(ap, 45.0, each=lambda a: track.append((a.time_s, *a.truth.pos_enu, a.truth.vel_enu[1], a.truth.vel_enu[2])))
+    t, _, north, up, vn, vz = np.array(track).T
+    cruise = (north > 100.0) & (north < 180.0)
+    assert np.median(vn[cruise]) == pytest.approx(10.0, abs=0.3)
+    assert np.median(vz[cruise]) == pytest.approx(20.0 / 28.0, abs=0.08)
+    # on the line: the height gained is the distance flown times the slope, all the way
+    assert np.max(np.abs((up - 10.0) - (north / 280.0) * 20.0)) < 1.5
+    assert up[-1] == pytest.approx(30.0, abs=0.3) and north[-1] == pytest.approx(280.0, abs=0.5)
+    # a goal straight up is not slowed: WPNAV_SPEED_UP
+    ap.set_position_target([0.0, 280.0, 50.0])
+    climb = []
+    run_for(ap, 6.0, each=lambda a: climb.append(a.truth.vel_enu[2]))
+    assert max(climb) == pytest.approx(2.5, abs=0.15)
+
+
 def test_the_target_waits_for_a_vehicle_held_back_by_its_lean_limit(make_ap, run_for):
     # ArduPilot's SITL quad's drag on 8 kg: at 30 deg, 0.234 v^2 + 1.37 v = 8 g tan 30 = 45.3 N: 11.29 m/s
     # through the air, 8.29 m/s over the ground into 3 m/s
