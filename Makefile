@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/chaser-bt rehearse trees/chase.yaml --scenario sitl/scenarios/chase.yaml --seed 1 --report out/demo --progress always
+	$(BIN)/chaser-bt rehearse trees/chase.yaml --scenario sitl/scenarios/chase.yaml --seed 1 --time-limit 120 --report out/demo --progress always
 
 # One worker per core; a test file stays on one worker (its servers, ports and Ray clusters are its own).
 test: $(STAMP)

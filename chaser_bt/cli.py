@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import errno
 import importlib
 import json
@@ -148,6 +149,8 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     p.add_argument("--seed", type=arg.seed, default=DEFAULT_SEED, metavar="N",
                    help=f"simulator seed: the same seed flies the same flight (default {DEFAULT_SEED})")
     p.add_argument("--rate-hz", type=arg.positive_float, default=10.0, metavar="HZ", help="tick rate, Hz (default 10)")
+    p.add_argument("--time-limit", type=arg.positive_float, metavar="S",
+                   help="end the flight after S simulated seconds if the scenario's own limit is later (default: the scenario's)")
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")
     p.add_argument("--show-ticks", action="store_true", help="print the tree with statuses whenever a status changes (to stderr with --json)")
     p.add_argument("--no-radar", action="store_true", help="no ground radar even if the scenario has one")
@@ -329,6 +332,8 @@ def _fly(args: argparse.Namespace, tree, monitor) -> int:
 def _rehearse(args: argparse.Namespace) -> int:
     tree = _load_tree(args.tree)
     scenario = _load_scenario(args.scenario)
+    if args.time_limit is not None:
+        scenario = dataclasses.replace(scenario, time_limit_s=min(scenario.time_limit_s, args.time_limit))
     from sitl.ardupilot.process import ArduPilotMissing
     from sitl.ardupilot.simulator import ArduPilotStopped
     from sitl.bench.rehearsal import AutopilotChoice, RehearsalInterrupted, rehearse

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 import time
@@ -121,6 +122,17 @@ def test_rehearse_show_ticks_prints_the_tree_at_each_change(capsys):
     assert "east corner RUNNING->SUCCESS" in out
     assert out.count("--- t = ") >= 6  # take-off, four legs, RTL at least
     assert "[*]" in out and "[✓]" in out  # statuses drawn in the tree
+
+
+def test_rehearse_time_limit_cuts_the_flight_short(capsys):
+    # still on the ground at 12.5 s (the patrol's vehicle is ready to arm later): a timeout, exit 1
+    assert main(["rehearse", str(PATROL), "--scenario", str(SCENARIO), "--no-camera", "--json", "--time-limit", "12.5"]) == 1
+    report = json.loads(capsys.readouterr().out)
+    assert report["sim_time_s"] == pytest.approx(12.5, abs=0.05)
+    assert report["outcome"] == "timeout" and report["message"] == "time limit of 12 s reached"
+    with pytest.raises(SystemExit) as exc:  # argparse: bad input
+        main(["rehearse", str(PATROL), "--scenario", str(SCENARIO), "--time-limit", "0"])
+    assert exc.value.code == 2 and "--time-limit" in capsys.readouterr().err
 
 
 def test_bad_signing_key_file_is_bad_input(tmp_path, capsys):
