@@ -12,8 +12,8 @@ and yaw centred (1500) and the throttle stick down (1000), so ALT_HOLD descends 
 overrides throttle to 1500 (DESIGN §5). Channels 5-16 read 1500 (no mode switch is simulated).
 As ArduCopter, the rotors stay still for 2 s after arming (ARMING_DELAY_SEC); the land detector
 reports landed once the rotors touch the ground with the thrust command at its lower limit (ground
-idle) for LAND_DETECTOR_TRIGGER_SEC (1 s), ArduCopter's "throttle at its lower limit" test, and a
-landing mode disarms after the rotors spool down (MOT_SPOOL_TIME).
+idle), the climb rate under 1 m/s and the 1 Hz low-passed acceleration under 1 m/s^2, for
+LAND_DETECTOR_TRIGGER_SEC (1 s), as ArduCopter's, and a landing mode disarms after the rotors spool down (MOT_SPOOL_TIME).
 
 Mode changes follow Copter::set_mode: while disarmed any existing mode is accepted (the checks a
 mode needs, such as a position estimate, come at arming), while armed a mode that needs a position
@@ -45,7 +45,10 @@ from sitl.vehicle.mission import MissionStore
 from sitl.vehicle.modes import (
     ARMING_DELAY_S,
     AUTO_YAW_RATE_MAX,
+    LAND_ACCEL_LPF_HZ,
+    LAND_ACCEL_MAX,
     LAND_DETECT_S,
+    LAND_VEL_Z_MAX,
     FlightMode,
     Guided,
     PositionController,
@@ -213,6 +216,8 @@ class Autopilot:
         self.fence_breaches = 0  # FENCE_TYPE bits breached now (SYS_STATUS GEOFENCE health)
         self.missions = MissionStore()
         self._ground_time = 0.0
+        self._land_last_vel = (0.0, 0.0, 0.0)
+        self._land_accel = [0.0, 0.0, 0.0]  # earth-frame acceleration, low-passed at LAND_ACCEL_LPF_HZ
         self._spool_down_s = 0.0
         self._idle = False
         self._idle_time = 0.0
@@ -369,14 +374,23 @@ class Autopilot:
 
     # ------------------------------------------------------------------ detectors, failsafes
     def _land_detector(self, h: float) -> None:
-        """ArduCopter's land detector: landed once the throttle has sat at its lower limit (here: a thrust
-        command at or below ground idle) with the rotors on the ground for LAND_DETECTOR_TRIGGER_SEC."""
+        """ArduCopter's land detector (Copter::update_land_detector): landed once, for
+        LAND_DETECTOR_TRIGGER_SEC, the throttle has sat at its lower limit (here: a thrust command at or
+        below ground idle) with the rotors on the ground, the estimated climb rate within
+        LAND_DETECTOR_VEL_Z_MAX of zero and the earth-frame acceleration, low-passed at 1 Hz
+        (land_accel_ef_filter), within LAND_DETECTOR_ACCEL_MAX: the touchdown's jolt has to settle."""
+        v = (self.evx, self.evy, self.evz)
+        a = [(now - last) / h for now, last in zip(v, self._land_last_vel)]
+        self._land_last_vel = v
+        alpha = h / (h + 1.0 / (2.0 * math.pi * LAND_ACCEL_LPF_HZ))
+        self._land_accel = [f + alpha * (x - f) for f, x in zip(self._land_accel, a)]
         ph = self.phys
         if not ph.on_ground:
             self._ground_time = 0.0
             self.land_complete = False
             return
-        if ph.thrust_cmd <= self.airframe.idle_thrust_n:
+        still = math.sqrt(sum(x * x for x in self._land_accel)) <= LAND_ACCEL_MAX and abs(self.evz) < LAND_VEL_Z_MAX
+        if ph.thrust_cmd <= self.airframe.idle_thrust_n and still:
             self._ground_time += h
         else:
             self._ground_time = 0.0
