@@ -4,12 +4,10 @@ fly towards, the climb turns towards it once clear of the ground (paper state 2)
 from __future__ import annotations
 
 import enum
-
-import py_trees
-
 import math
 
 import numpy as np
+import py_trees
 
 from behaviours.base import CommandingBehaviour, optional_input, state_port
 from chaser_bt.control.cue_approach import approach_point
