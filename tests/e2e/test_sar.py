@@ -76,12 +76,13 @@ def test_sar_differs_from_the_chase_only_in_subtrees_and_parameters():
     chase, sar = typed(TREES / "chase.yaml"), typed(TREES / "sar.yaml")
     diff, shared = model_diff(chase, sar)
     assert [d for d in diff if d[0] == "structure"] == [], json.dumps(diff, indent=1)
-    # The slots swapped: the radar's (the operator's cue), the last state (report the find and hold
-    # over it instead of following) and the search (tuned for a person); safety, launch and fly-out
+    # The slots swapped: the radar's (the operator's cue), the launch (the chase climbs towards the
+    # radar cue, LaunchToCue; the search climbs straight up, Launch), the last state (report the find
+    # and hold over it instead of following) and the search (tuned for a person); safety and fly-out
     # are the chase's own subtrees, in the same slots.
     swapped_in = {where.rsplit(" -> ", 1)[1] for kind, where in diff if kind == "subtree"}
-    assert swapped_in == {"SarCue", "SarFind", "SarSearch"}, diff
-    assert {"Safety", "Launch", "FlyOut"} <= shared
+    assert swapped_in == {"SarCue", "Launch", "SarFind", "SarSearch"}, diff
+    assert {"Safety", "FlyOut"} <= shared
     params = [where for kind, where in diff if kind == "param"]
     assert any(p.endswith(".detector: None -> 'PERSON_YOLO'") for p in params)  # the person detector in the detector slot
 
