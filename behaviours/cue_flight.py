@@ -4,6 +4,8 @@
 - :class:`FlyToCue`: GUIDED position targets to a standoff point short of the cue, at a safe
   altitude, facing it (:func:`chaser_bt.control.cue_approach.approach_point`), re-targeted as the
   cue moves (Nav2's follow-point pattern: a rate-limited goal update beside a long-running leaf).
+- :class:`ClimbTowardsCue`: beside the take-off (paper state 2), once clear of the ground, GUIDED
+  velocity up and towards the cue, so the climb closes on the target.
 - :class:`SetMode`: ask for a flight mode and wait until the vehicle shows it.
 """
 
@@ -91,6 +93,63 @@ class FlyToCue(CommandingBehaviour):
             self._link().goto_enu(plan.goal_enu, plan.yaw_enu_rad)
             self._sent_goal, self._sent_at = plan.goal_enu, now
         self.feedback_message = f"{plan.distance_m:.0f} m to the standoff point of cue {cue.track_id}"
+        return Status.RUNNING
+
+
+@register_behaviour
+class ClimbTowardsCue(CommandingBehaviour):
+    """Beside ArmAndTakeoff (a Parallel that ends with it): once airborne and ``clearance_m`` up, while
+    the cue is fresh, GUIDED velocity set-points up at ``climb_mps`` and across at up to ``speed_mps``
+    towards the point ``standoff_m`` short of the cue at ``altitude_m``, nose on it (paper 2.2.1: in
+    state 2 "the information from the radar can update the latitude and longitude to fly towards").
+    Velocity, not a position goal: ArduCopter flies a GUIDED position target on a straight 3D line
+    (AC_PosControl::input_pos_xyz), which on a 300 m leg climbs at 1 m/s. A cue gone stale after it
+    turned: straight up. Always RUNNING: the take-off beside it decides when the climb is over.
+    Halted, it sends no hover of its own: the take-off beside it has either succeeded (the next
+    state commands in the same tick), failed (and hovers itself) or been halted too (and hovers).
+    """
+
+    HOVER_ON_HALT = False
+
+    INPUT_PORTS = {
+        "cue": input_port(TargetCue, "The target cue", required=False, default_key=CUE_KEY),
+        "altitude_m": input_port(float, "The take-off altitude above home (m): the climb slows near it", above=0),
+        "clearance_m": input_port(float, "Height above home before the climb turns towards the cue (m)",
+                                  default=10.0, minimum=0),
+        "standoff_m": input_port(float, "Head for the point this far short of the cue, horizontally (m)",
+                                 default=20.0, minimum=0),
+        "max_age_s": input_port(float, "An older cue is not flown towards (s)", default=2.0, minimum=0),
+        "speed_mps": input_port(float, "Horizontal speed towards the cue (m/s)", default=10.0, above=0),
+        "climb_mps": input_port(float, "Climb rate (m/s; the autopilot's WPNAV_SPEED_UP, ArduCopter's default "
+                                       "2.5)", default=2.5, above=0),
+        "state": state_port(),
+    }
+    OUTPUT_PORTS: dict = {}
+
+    def initialise(self) -> None:
+        self._steering = False  # velocity set-points sent towards the cue
+
+    def update(self) -> Status:
+        state, cue = self.state, optional_input(self, "cue")
+        if cue is None or not state.airborne or state.alt_rel_m < self.get_input("clearance_m"):
+            self.feedback_message = "waiting to clear the ground" if cue is not None else "no cue"
+            return Status.RUNNING
+        altitude = self.get_input("altitude_m")
+        climb = min(self.get_input("climb_mps"), max(altitude - state.alt_rel_m, 0.5))
+        if cue.age(self._now()) > self.get_input("max_age_s"):
+            if self._steering:  # it had turned: stop closing, keep climbing
+                self._link().velocity_enu([0.0, 0.0, climb])
+            self.feedback_message = "cue lost: straight up"
+            return Status.RUNNING
+        self._steering = True
+        plan = approach_point(state.position_enu, cue.position_enu, standoff_m=self.get_input("standoff_m"),
+                              min_alt_m=altitude, height_above_m=-math.inf)
+        across = plan.goal_enu[:2] - state.position_enu[:2]
+        dist = float(np.hypot(*across))
+        speed = min(self.get_input("speed_mps"), 0.5 * dist)  # slow down over the last 2 s
+        v = across * (speed / dist) if dist > 1e-6 else np.zeros(2)
+        self._link().velocity_enu([v[0], v[1], climb], yaw_enu_rad=plan.yaw_enu_rad)
+        self.feedback_message = f"climbing at {climb:.1f} m/s, {dist:.0f} m to the cue's standoff point"
         return Status.RUNNING
 
 

@@ -168,7 +168,7 @@ def _climb_track(vehicle, body: str) -> tuple[Status, list[np.ndarray]]:
     return status, track
 
 
-def test_arm_and_takeoff_climbs_towards_a_cue_once_clear_of_the_ground(scenario):
+def test_climb_towards_the_cue_beside_the_take_off_once_clear_of_the_ground(scenario):
     """Paper state 2: the radar cue updates where to fly while the climb goes on."""
     from chaser_bt.cue import TargetCue
 
@@ -180,8 +180,14 @@ def test_arm_and_takeoff_climbs_towards_a_cue_once_clear_of_the_ground(scenario)
     for max_age, steered in ((1e6, True), (0.5, False)):  # a fresh cue, then one already stale
         v = InProcessVehicle(scenario, seed=7)
         py_trees.blackboard.Blackboard.storage["/target/cue"] = cue
-        _, track = _climb_track(v, f"ArmAndTakeoff: {{altitude_m: 30, toward: '{{@target/cue}}', clearance_m: 10,"
-                                   f" standoff_m: 20, speed_mps: 12, max_cue_age_s: {max_age}}}")
+        _, track = _climb_track(v, f"""
+Parallel:
+  success_count: 1
+  failure_count: 1
+  children:
+    - ArmAndTakeoff: {{altitude_m: 30}}
+    - ClimbTowardsCue: {{altitude_m: 30, clearance_m: 10, standoff_m: 20, speed_mps: 12, max_age_s: {max_age}}}
+""")
         end = track[-1]
         assert end[2] >= 29.0
         if not steered:
