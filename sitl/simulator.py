@@ -26,17 +26,15 @@ from or written to any port (bytes sent to the vehicle meanwhile are lost, as on
 from __future__ import annotations
 
 import logging
-from typing import Callable, Protocol
+from typing import Protocol
 
 import numpy as np
 
 from sitl.vehicle.autopilot import Autopilot
 from sitl.vehicle.mavlink_endpoint import Channel, MavlinkEndpoint
 from sitl.vehicle.physics import PHYSICS_DT
-from sitl.world.intruders import Intruder
-from sitl.world.radar.model import GroundRadar, ScanTruth
 from sitl.world.scenario import Scenario
-from sitl.world.surroundings import Surroundings
+from sitl.world.surroundings import InSurroundings, Surroundings
 
 __all__ = ["Port", "Simulator"]
 
@@ -51,7 +49,7 @@ class Port(Protocol):
     def read(self) -> bytes: ...
 
 
-class Simulator:
+class Simulator(InSurroundings):
     """Steps the vehicle and serves MAVLink on every attached port.
 
     Args:
@@ -96,23 +94,6 @@ class Simulator:
     def link_up(self, up: bool | None) -> None:
         """Force the link up or down (tests); ``None`` returns it to the scenario's script."""
         self._link_override = up
-
-    @property
-    def intruders(self) -> list[Intruder]:
-        return self.surroundings.intruders
-
-    @property
-    def radar(self) -> GroundRadar | None:
-        return self.surroundings.radar
-
-    @property
-    def radar_truth(self) -> ScanTruth | None:
-        """Scoring only: the last radar scan's track -> object."""
-        return self.surroundings.radar_truth
-
-    def add_radar_consumer(self, consumer: Callable[[bytes], None]) -> None:
-        """Hand every radar datagram to ``consumer`` too (e.g. a ``QueueDatagramSource.push``)."""
-        self.surroundings.add_radar_consumer(consumer)
 
     def radar_objects(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """What the radar can see now: the vehicle while airborne and the scripted targets present."""

@@ -39,7 +39,7 @@ from sitl.vehicle.physics import PHYSICS_DT, NormalStream, Wind
 from sitl.vehicle.rotor_body import AIRFRAMES, RotorBody
 from sitl.vehicle.setup import PilotScript
 from sitl.world.scenario import Scenario
-from sitl.world.surroundings import Surroundings
+from sitl.world.surroundings import InSurroundings, Surroundings
 
 __all__ = ["ArduPilotSimulator", "ArduPilotStopped", "ReportedAutopilot", "DEFAULT_SIM_RATE_HZ", "pilot_rc"]
 
@@ -99,7 +99,7 @@ def pilot_rc(pilot: PilotScript | None, t_s: float, *, airborne: bool) -> tuple[
     return tuple(pwm)
 
 
-class ArduPilotSimulator:
+class ArduPilotSimulator(InSurroundings):
     """ArduCopter SITL flying the rotor body in the scenario's world (see the module docstring).
 
     Args:
@@ -177,21 +177,6 @@ class ArduPilotSimulator:
         return TruthState(pos_enu=np.asarray(ned_to_enu(b.position_ned), float),
                           vel_enu=np.asarray(ned_to_enu(b.velocity_ned), float), euler_ned=b.euler_ned(),
                           on_ground=b.on_ground, crashed=b.crashed)
-
-    @property
-    def intruders(self):
-        return self.surroundings.intruders
-
-    @property
-    def radar(self):
-        return self.surroundings.radar
-
-    @property
-    def radar_truth(self):
-        return self.surroundings.radar_truth
-
-    def add_radar_consumer(self, consumer) -> None:
-        self.surroundings.add_radar_consumer(consumer)
 
     def intruder_telemetry(self) -> bytes:
         """The intruders' own MAVLink due now (bytes for a second radio), or ``b""``."""

@@ -86,3 +86,28 @@ class Surroundings:
         if not self.intruders:
             return b""
         return b"".join(intruder.telemetry_bytes(round(t, 6)) for intruder in self.intruders)
+
+
+class InSurroundings:
+    """What a simulator flying in :class:`Surroundings` shows a rehearsal of them (the built-in
+    :class:`sitl.simulator.Simulator` and :class:`sitl.ardupilot.simulator.ArduPilotSimulator`):
+    set ``surroundings`` in ``__init__``."""
+
+    surroundings: Surroundings
+
+    @property
+    def intruders(self) -> list[Intruder]:
+        return self.surroundings.intruders
+
+    @property
+    def radar(self) -> GroundRadar | None:
+        return self.surroundings.radar
+
+    @property
+    def radar_truth(self) -> ScanTruth | None:
+        """Scoring only: the last radar scan's track -> object."""
+        return self.surroundings.radar_truth
+
+    def add_radar_consumer(self, consumer: Callable[[bytes], None]) -> None:
+        """Hand every radar datagram to ``consumer`` too (e.g. a ``QueueDatagramSource.push``)."""
+        self.surroundings.add_radar_consumer(consumer)
