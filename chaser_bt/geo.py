@@ -21,6 +21,7 @@ from scipy.spatial.transform import Rotation
 __all__ = [
     "GeoPoint",
     "LocalFrame",
+    "NearbyGeodetic",
     "ned_to_enu",
     "enu_to_ned",
     "body_to_enu_rotation",
@@ -79,6 +80,53 @@ class LocalFrame:
     def point_to_enu(self, p: GeoPoint) -> np.ndarray:
         """:meth:`to_enu` for a :class:`GeoPoint`."""
         return self.to_enu(p.lat_deg, p.lon_deg, p.alt_m)
+
+
+class NearbyGeodetic:
+    """:meth:`LocalFrame.to_geodetic` for a stream of nearby points, at a fraction of the cost.
+
+    A simulator converts every telemetry position (GPS and EKF, 8 a simulated second), and
+    pymap3d's iterative ECEF -> geodetic costs 0.2 ms each: a quarter of the physics-only
+    simulator's time. Here pymap3d converts exactly at an anchor point and 1 m along each ENU
+    axis from it; a point within ``radius_m`` of the anchor goes through that Jacobian, and a
+    point farther away becomes the new anchor. The first-order error is below
+    ``radius_m**2 / 6.3e6`` m (0.4 mm at 50 m), far under the 1e-7 degree (1.1 cm) of MAVLink's
+    integer positions. Within 1 degree of a pole every point is converted exactly.
+    """
+
+    def __init__(self, frame: LocalFrame, radius_m: float = 50.0) -> None:
+        self.frame = frame
+        self.radius_m = radius_m
+        self._anchor: tuple[float, float, float] | None = None
+        self._geo0 = (0.0, 0.0, 0.0)
+        self._jacobian = ((0.0,) * 3,) * 3  # rows: d(lat, lon, alt) / d(e, n, u)
+
+    def __call__(self, enu: np.ndarray | tuple[float, float, float]) -> GeoPoint:
+        e, n, u = float(enu[0]), float(enu[1]), float(enu[2])
+        a = self._anchor
+        if a is None or abs(e - a[0]) + abs(n - a[1]) + abs(u - a[2]) > self.radius_m:
+            return self._anchor_at(e, n, u)
+        de, dn, du = e - a[0], n - a[1], u - a[2]
+        (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = self._jacobian
+        lat0, lon0, alt0 = self._geo0
+        lon = lon0 + j10 * de + j11 * dn + j12 * du
+        return GeoPoint(lat0 + j00 * de + j01 * dn + j02 * du, (lon + 180.0) % 360.0 - 180.0,
+                        alt0 + j20 * de + j21 * dn + j22 * du)
+
+    def _anchor_at(self, e: float, n: float, u: float) -> GeoPoint:
+        exact = self.frame.to_geodetic((e, n, u))
+        if abs(exact.lat_deg) > 89.0:
+            self._anchor = None
+            return exact
+        steps = [self.frame.to_geodetic((e + 1.0, n, u)), self.frame.to_geodetic((e, n + 1.0, u)),
+                 self.frame.to_geodetic((e, n, u + 1.0))]
+        self._jacobian = (
+            tuple(s.lat_deg - exact.lat_deg for s in steps),
+            tuple((s.lon_deg - exact.lon_deg + 180.0) % 360.0 - 180.0 for s in steps),  # across 180
+            tuple(s.alt_m - exact.alt_m for s in steps),
+        )
+        self._anchor, self._geo0 = (e, n, u), (exact.lat_deg, exact.lon_deg, exact.alt_m)
+        return exact
 
 
 def ned_to_enu(v: np.ndarray | tuple[float, float, float]) -> np.ndarray:

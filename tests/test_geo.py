@@ -9,6 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from chaser_bt.geo import (
+    NearbyGeodetic,
     GeoPoint,
     LocalFrame,
     body_to_enu_rotation,
@@ -71,6 +72,43 @@ def test_enu_geodetic_round_trip(lat, lon, alt, e, n, u):
     frame = LocalFrame(GeoPoint(lat, lon, alt))
     p = frame.to_geodetic((e, n, u))
     np.testing.assert_allclose(frame.point_to_enu(p), [e, n, u], atol=1e-5)
+
+
+@given(
+    st.floats(-88, 88), st.floats(-180, 179.999), st.floats(-100, 3000),
+    st.lists(st.tuples(st.floats(-3000, 3000), st.floats(-3000, 3000), st.floats(-200, 500)), min_size=1, max_size=8),
+    st.floats(0.0, 60.0),
+)
+def test_nearby_geodetic_agrees_with_pymap3d_to_a_millimetre(lat, lon, alt, anchors, jitter):
+    """Each anchor and a point up to ``jitter`` m from it (on the linearisation) land within 1 mm."""
+    frame = LocalFrame(GeoPoint(lat, lon, alt))
+    nearby = NearbyGeodetic(frame)
+    for e, n, u in anchors:
+        for p in ((e, n, u), (e + jitter, n - jitter / 2, u + jitter / 3)):
+            g = nearby(p)
+            assert np.linalg.norm(frame.point_to_enu(g) - np.array(p)) < 1e-3
+
+
+def test_nearby_geodetic_calls_pymap3d_only_to_re_anchor(monkeypatch):
+    """A 100-point walk inside 10 m costs the 4 exact conversions of one anchor; 200 m on, 4 more."""
+    calls = []
+    exact = pymap3d.enu2geodetic
+    monkeypatch.setattr(pymap3d, "enu2geodetic", lambda *a, **k: calls.append(a) or exact(*a, **k))
+    nearby = NearbyGeodetic(LocalFrame(GeoPoint(47.0, 8.0, 400.0)))
+    for k in range(100):
+        nearby((5.0 * math.cos(k), 5.0 * math.sin(k), 20.0))
+    assert len(calls) == 4
+    nearby((200.0, 0.0, 20.0))
+    assert len(calls) == 8
+
+
+def test_nearby_geodetic_wraps_the_antimeridian():
+    frame = LocalFrame(GeoPoint(10.0, 179.9999, 0.0))
+    nearby = NearbyGeodetic(frame)
+    nearby((0.0, 0.0, 0.0))
+    g = nearby((30.0, 0.0, 0.0))  # 30 m east of 179.9999 E is west of 180
+    assert g.lon_deg < 0.0
+    assert np.linalg.norm(frame.point_to_enu(g) - [30.0, 0.0, 0.0]) < 1e-3
 
 
 def test_geopoint_rejects_out_of_range_latitude():

@@ -36,6 +36,7 @@ from scipy.spatial.transform import Rotation
 from chaser_bt.geo import (
     GeoPoint,
     LocalFrame,
+    NearbyGeodetic,
     body_to_enu_rotation,
     euler_ned_from_rotation,
 )
@@ -101,12 +102,12 @@ class Estimate:
     pos_enu: np.ndarray
     vel_enu: np.ndarray
     alt_rel_m: float
-    frame: LocalFrame = field(repr=False)
+    geodesy: NearbyGeodetic = field(repr=False)
 
     @cached_property
     def geodetic(self) -> GeoPoint:
         """``pos_enu`` on WGS84 (altitude in the frame origin's datum: AMSL)."""
-        return self.frame.to_geodetic(self.pos_enu)
+        return self.geodesy(self.pos_enu)
 
     @property
     def lat_deg(self) -> float:
@@ -168,6 +169,7 @@ class Autopilot:
     def __init__(self, scenario: VehicleSetup, rng: np.random.Generator) -> None:
         self.setup = scenario
         self.frame = LocalFrame(scenario.home)
+        self.geodesy = NearbyGeodetic(self.frame)  # the GPS's and the EKF's positions, near each other
         self.airframe: AirframeParams = scenario.airframe
         self.params = ParamStore({"BATT_CAPACITY": self.airframe.battery_capacity_mah,
                                   **scenario.params})
@@ -693,7 +695,7 @@ class Autopilot:
             pos_enu=np.array([self.ex, self.ey, self.ez]),
             vel_enu=np.array([self.evx, self.evy, self.evz]),
             alt_rel_m=self.alt_rel(),
-            frame=self.frame,
+            geodesy=self.geodesy,
         )
 
     def attitude(self) -> tuple[float, float, float, float, float, float]:
@@ -705,7 +707,7 @@ class Autopilot:
         """The GPS receiver's report: no fix before boot.gps_fix_s and during a gps_loss fault."""
         ph = self.phys
         g = self._gps_err
-        geo = self.frame.to_geodetic((ph.px + g[0], ph.py + g[1], ph.pz + g[2]))
+        geo = self.geodesy((ph.px + g[0], ph.py + g[1], ph.pz + g[2]))
         vel_ned = np.array([ph.vy, ph.vx, -ph.vz])
         if self.gps_ok:
             fix, sats, eph, epv = 3, 12, 0.8, 1.2

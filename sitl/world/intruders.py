@@ -30,7 +30,7 @@ from typing import Protocol
 
 import numpy as np
 
-from chaser_bt.geo import LocalFrame
+from chaser_bt.geo import LocalFrame, NearbyGeodetic
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2  # noqa: E402
@@ -341,6 +341,7 @@ class IntruderTelemetry:
     def __init__(self, sysid: int, rate_hz: float, frame: LocalFrame) -> None:
         self._mav = mavlink2.MAVLink(None, srcSystem=sysid, srcComponent=1)
         self._frame = frame
+        self._geodesy = NearbyGeodetic(frame)
         self._period = 1.0 / rate_hz
         self._next_hb = 1.0
         self._next_pos = 1.0
@@ -360,7 +361,7 @@ class IntruderTelemetry:
                 mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_GENERIC, 0, 0, mavlink2.MAV_STATE_ACTIVE, 3))
         if t >= self._next_pos - 1e-9:
             self._next_pos += self._period
-            g = self._frame.to_geodetic(pos)
+            g = self._geodesy(pos)
             home_alt = self._frame.origin.alt_m
             hdg = math.degrees(math.atan2(vel[0], vel[1])) % 360.0 if math.hypot(vel[0], vel[1]) > 0.3 else None
             out += self._pack(mavlink2.MAVLink_global_position_int_message(
