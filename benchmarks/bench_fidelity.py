@@ -13,8 +13,12 @@ on the vehicle's clock (the latest ``time_boot_ms`` received before each), not o
 (leaves the ground -> within 1 m of 20 m), each leg (its first position target -> within 2 m of the
 waypoint, the GoTo's acceptance radius), corner overshoot (the largest distance from the next leg's
 line while flying it: how far the turn swings wide), mode request (RTL or LAND acknowledged) ->
-descent start (sinking at 0.3 m/s or more), descent (-> within 0.3 m of the resting height), touchdown
--> disarmed, and the landing error (horizontal distance from the arming point). ``rtl_start_speed_mps``
+descent start (sinking at 0.3 m/s or more), descent (-> touchdown: sinking at less than 0.3 m/s again, the
+ground having stopped it), touchdown -> disarmed, and the landing error (horizontal distance from the
+arming point). The two sink-rate crossings are interpolated between the 10 Hz GLOBAL_POSITION_INT samples,
+and the touchdown is found by the sink rate, not by the reported altitude: an estimate's altitude wanders
+on the ground by a decimetre or more (the built-in's EKF error), which moved a "within 0.3 m of the resting
+height" touchdown by a third of a second, and that band was crossed 0.6 s before contact at 0.5 m/s. ``rtl_start_speed_mps``
 says how the vehicle was moving when RTL came: still carrying speed towards home, it first stops and
 creeps back (a few seconds more before the descent) than at rest over home; a tick late decides which.
 
@@ -61,7 +65,6 @@ SQUARE_ENU = ((100.0, 0.0), (100.0, 100.0), (0.0, 100.0), (0.0, 0.0))
 ACCEPT_M = 2.0  # GoTo's acceptance radius
 LIFTOFF_M = 0.5
 DESCENT_MPS = 0.3
-TOUCHDOWN_M = 0.3
 MAV_CMD_NAV_RETURN_TO_LAUNCH, MAV_CMD_NAV_LAND, MAV_CMD_COMPONENT_ARM_DISARM = 20, 21, 400
 ARMED_FLAG = 128
 
@@ -279,6 +282,15 @@ def _first(tel: Telemetry, after: float, test) -> int | None:
     return next((i for i, t in enumerate(tel.t) if t >= after and test(i)), None)
 
 
+def _sink_crossing(tel: Telemetry, i: int) -> float:
+    """When the sink rate crossed DESCENT_MPS between samples i - 1 and i, linearly interpolated."""
+    if i == 0:
+        return tel.t[0]
+    s0, s1 = tel.sink[i - 1], tel.sink[i]
+    frac = (DESCENT_MPS - s0) / (s1 - s0) if s1 != s0 else 1.0
+    return tel.t[i - 1] + min(max(frac, 0.0), 1.0) * (tel.t[i] - tel.t[i - 1])
+
+
 def _cross_track(px: float, py: float, a: tuple[float, float], b: tuple[float, float]) -> float:
     """Distance of (px, py) from the line through a and b."""
     dx, dy = b[0] - a[0], b[1] - a[1]
@@ -327,17 +339,18 @@ def phases(tel: Telemetry, case: FlightCase) -> dict[str, float | None]:
             r[f"{mode}_start_speed_mps"] = math.hypot(tel.e[i_start] - tel.e[i_start - 1],
                                                       tel.n[i_start] - tel.n[i_start - 1]) / dt
     i_desc = _first(tel, t_end, lambda i: tel.sink[i] >= DESCENT_MPS)
-    r[f"{mode}_to_descent_s"] = None if i_desc is None else tel.t[i_desc] - t_end
+    if i_desc is None:
+        r[f"{mode}_to_descent_s"] = None
+        return r
+    t_desc = _sink_crossing(tel, i_desc)
+    r[f"{mode}_to_descent_s"] = t_desc - t_end
     t_disarm = next((t for t in sorted(tel.disarmed_at) if t > t_end), None)
-    if i_desc is None or t_disarm is None:
+    i_touch = _first(tel, tel.t[i_desc], lambda i: tel.sink[i] < DESCENT_MPS)
+    if t_disarm is None or i_touch is None:
         return r
-    rest = [tel.up[i] for i, t in enumerate(tel.t) if t >= t_disarm]
-    resting = sorted(rest)[len(rest) // 2] if rest else ground
-    i_touch = _first(tel, tel.t[i_desc], lambda i: tel.up[i] <= resting + TOUCHDOWN_M)
-    if i_touch is None:
-        return r
-    r["descent_s"] = tel.t[i_touch] - tel.t[i_desc]
-    r["touchdown_to_disarm_s"] = t_disarm - tel.t[i_touch]
+    t_touch = _sink_crossing(tel, i_touch)
+    r["descent_s"] = t_touch - t_desc
+    r["touchdown_to_disarm_s"] = t_disarm - t_touch
     r["landing_error_m"] = math.hypot(tel.e[-1], tel.n[-1])
     return r
 

@@ -77,8 +77,13 @@ _RC_NEUTRAL = (1500, 1500, 1000, 1500) + (1500,) * 12  # ch1-16 with no transmit
 _UINT16_MAX = 65535
 
 # estimate and GPS error processes (first-order Gauss-Markov): std (m) and time constant (s)
-_EST_STD_H, _EST_STD_V, _EST_TAU = 0.05, 0.1, 5.0
+_EST_STD_H, _EST_STD_V, _EST_TAU = 0.05, 0.1, 30.0
 _GPS_STD_H, _GPS_STD_V, _GPS_TAU = 0.3, 0.5, 20.0
+# the EKF's error is a slow, smooth drift, not a rough walk: its Gauss-Markov process seen through a
+# first-order low-pass of this time constant, so it moves at ~0.01 m/s RMS. A 5 s unsmoothed walk had the
+# altitude hold chase it at 0.05 m/s RMS (0.1-0.2 m/s at times) in a still hover, where ArduCopter's SITL
+# holds 0.00 m/s, and a LAND then began 0.1 s late.
+_EST_SMOOTH_S = 3.0
 _EKF_LOSS_GRACE_S = 1.0  # the EKF dead-reckons this long after losing GPS before giving up
 _BATT_CHECK_PERIOD_S = 0.1
 
@@ -191,10 +196,11 @@ class Autopilot:
         # navigation estimate (ENU floats) and error processes
         self.ex = self.ey = self.ez = 0.0
         self.evx = self.evy = self.evz = 0.0
+        self._est_walk = [0.0, 0.0, 0.0]  # the Gauss-Markov process that _est_err smooths
         self._est_err = [0.0, 0.0, 0.0]
         self._gps_err = [0.0, 0.0, 0.0]
         self._err_dt = -1.0
-        self._err_coef = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        self._err_coef = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         self._gps_lost_at: float | None = None
         # faults as (start, end) intervals per kind
         self._fault_windows = {
@@ -295,13 +301,17 @@ class Autopilot:
             self._err_dt = h
             a1, a2 = math.exp(-h / _EST_TAU), math.exp(-h / _GPS_TAU)
             s1, s2 = math.sqrt(1.0 - a1 * a1), math.sqrt(1.0 - a2 * a2)
-            self._err_coef = (a1, _EST_STD_H * s1, _EST_STD_V * s1, a2, _GPS_STD_H * s2, _GPS_STD_V * s2)
-        a1, bh1, bv1, a2, bh2, bv2 = self._err_coef
+            self._err_coef = (a1, _EST_STD_H * s1, _EST_STD_V * s1, a2, _GPS_STD_H * s2, _GPS_STD_V * s2,
+                              1.0 - math.exp(-h / _EST_SMOOTH_S))
+        a1, bh1, bv1, a2, bh2, bv2, k = self._err_coef
         take = self._normals.take
-        e, g = self._est_err, self._gps_err
-        e[0] = a1 * e[0] + bh1 * take()
-        e[1] = a1 * e[1] + bh1 * take()
-        e[2] = a1 * e[2] + bv1 * take()
+        w, e, g = self._est_walk, self._est_err, self._gps_err
+        w[0] = a1 * w[0] + bh1 * take()
+        w[1] = a1 * w[1] + bh1 * take()
+        w[2] = a1 * w[2] + bv1 * take()
+        e[0] += (w[0] - e[0]) * k
+        e[1] += (w[1] - e[1]) * k
+        e[2] += (w[2] - e[2]) * k
         g[0] = a2 * g[0] + bh2 * take()
         g[1] = a2 * g[1] + bh2 * take()
         g[2] = a2 * g[2] + bv2 * take()

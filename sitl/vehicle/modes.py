@@ -392,7 +392,7 @@ class PositionController:
         a_meas = (vz - self._last_vz) / dt
         self._last_vz = vz
         ea = az - a_meas
-        thrust = self.mass * (GRAVITY + az + ACC_Z_P * ea + self.ia) / max(math.cos(roll) * math.cos(pitch), 0.5)
+        thrust = self.mass * (GRAVITY + ACC_Z_P * ea + self.ia) / max(math.cos(roll) * math.cos(pitch), 0.5)
         if 0.0 < thrust < self.max_thrust:
             self.iz = min(max(self.iz + VEL_Z_I * ev * dt, -VEL_Z_IMAX), VEL_Z_IMAX)
             self.ia = min(max(self.ia + ACC_Z_I * ea * dt, -GRAVITY), GRAVITY)
