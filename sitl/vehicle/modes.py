@@ -385,6 +385,9 @@ class PositionController:
         The velocity PI's acceleration demand goes through an acceleration PI on the measured climb
         acceleration (ArduPilot's PSC_ACCZ loop), so a demand the vehicle cannot follow, such as
         descending while standing on the ground, winds the thrust down within a fraction of a second.
+        The demand itself is not fed forward into the thrust (PSC_ACCZ_FF 0): standing on the ground
+        after a 0.5 m/s descent, the thrust reaches its floor 0.6 s after contact, as worked by hand from
+        ArduCopter's gains; fed forward it took 0.4 s and the disarm came 0.2 s before ArduCopter's.
         """
         ff = self._shape_z(dt)
         ev = self.tvz + POS_Z_P * (self.tpz - pz) - vz
