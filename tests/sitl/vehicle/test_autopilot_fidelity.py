@@ -184,3 +184,23 @@ def test_a_still_air_hover_holds_its_height_still(airborne, run_for, seed):
     vz = np.asarray(vz)
     assert np.sqrt(np.mean(vz * vz)) < 0.02
     assert np.abs(vz).max() < 0.05
+
+
+def test_after_touchdown_the_thrust_reaches_its_floor_as_late_as_arducopters(airborne, run_for):
+    # ArduCopter standing on the ground after a 0.5 m/s descent: the accel target grows as
+    # 5 * (0.5 + 0.5 t) m/s^2 (PSC_VELZ_P 5, PSC_POSZ_P 1), and the throttle falls from hover (0.39) by
+    # 0.0005 * err + 0.001 * integral(err) (PSC_ACCZ_P 0.5, _I 1, err in cm/s^2): 0.125 t^2 + 0.375 t + 0.125
+    # = 0.39 at t = 0.59 s. Feeding the accel demand forward into the thrust got there in 0.4 s.
+    ap = airborne(alt=3.0)
+    assert ap.request_mode(LAND).accepted
+    contact = floor = None
+    t = 0.0
+    while t < 30.0 and floor is None:
+        ap.step(0.01)
+        t += 0.01
+        if contact is None and ap.phys.on_ground:
+            contact = t
+        if contact is not None and ap.phys.thrust_cmd <= ap.airframe.idle_thrust_n and t - contact > 0.05:
+            floor = t
+    assert contact is not None and floor is not None
+    assert floor - contact == pytest.approx(0.59, abs=0.1)
