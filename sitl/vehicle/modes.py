@@ -34,10 +34,10 @@ __all__ = [
 POS_XY_P = 1.0
 VEL_XY_P = 2.0
 VEL_XY_I = 1.0
-VEL_XY_IMAX = 2.0  # m/s^2
+VEL_XY_IMAX = 10.0  # m/s^2, PSC_VELXY_IMAX 1000: the integrator holds a lean-limited vehicle at its limit
 POS_Z_P = 1.0
-VEL_Z_P = 4.0
-VEL_Z_I = 2.0
+VEL_Z_P = 5.0  # PSC_VELZ_P and _I as ArduCopter's SITL reports them (PARAM_VALUE, V4.7.0-dev)
+VEL_Z_I = 0.0
 VEL_Z_IMAX = 4.0  # m/s^2
 # PSC_ACCZ_P 0.5 and _I 1.0 act in throttle per cm/s^2 / 1000: at a hover throttle of 0.39 (ArduPilot's SITL
 # quad) that is 1.26 and 2.5 /s of extra acceleration per m/s^2 of acceleration error
