@@ -34,7 +34,9 @@ __all__ = [
 POS_XY_P = 1.0
 VEL_XY_P = 2.0
 VEL_XY_I = 1.0
+VEL_XY_D = 0.25  # PSC_VELXY_D
 VEL_XY_IMAX = 10.0  # m/s^2, PSC_VELXY_IMAX 1000: the integrator holds a lean-limited vehicle at its limit
+VEL_XY_FILT_HZ = 5.0  # PSC_VELXY_FLTE and _FLTD: the velocity error and its derivative low-passed
 POS_Z_P = 1.0
 VEL_Z_P = 5.0  # PSC_VELZ_P and _I as ArduCopter's SITL reports them (PARAM_VALUE, V4.7.0-dev)
 VEL_Z_I = 0.0
@@ -203,6 +205,7 @@ class PositionController:
         self.speed_xy = 1.0
         self.accel_xy = 1.0
         self.ix = self.iy = 0.0
+        self._evf = self._dvf = (0.0, 0.0)  # the filtered velocity error and its filtered derivative
         self.tpz = self.tvz = 0.0
         self.taz = 0.0
         self.ia = 0.0
@@ -224,6 +227,7 @@ class PositionController:
         self.tax = self.tay = self.taz = 0.0
         self._limit = (0.0, 0.0)
         self.ix = self.iy = self.iz = self.ia = 0.0
+        self._evf = self._dvf = (0.0, 0.0)
         self._last_vz = vz
         self.xy_pos_goal = self.z_pos_goal = self.line = False
         self.xy_external = self.z_external = False
@@ -340,10 +344,16 @@ class PositionController:
                   angle_max: float) -> tuple[float, float]:
         """Advance the horizontal target and return the (roll, pitch) that tracks it."""
         ffx, ffy = self._shape_xy(dt)
-        evx = self.tvx + POS_XY_P * (self.tpx - px) - vx
-        evy = self.tvy + POS_XY_P * (self.tpy - py) - vy
-        ax = ffx + VEL_XY_P * evx + self.ix
-        ay = ffy + VEL_XY_P * evy + self.iy
+        # the velocity PID (AC_PID_2D): its error and the error's derivative each low-passed at VEL_XY_FILT_HZ
+        k = dt / (dt + 1.0 / (2.0 * math.pi * VEL_XY_FILT_HZ))
+        (fx, fy), (dx, dy) = self._evf, self._dvf
+        evx = fx + k * (self.tvx + POS_XY_P * (self.tpx - px) - vx - fx)
+        evy = fy + k * (self.tvy + POS_XY_P * (self.tpy - py) - vy - fy)
+        dx += k * ((evx - fx) / dt - dx)
+        dy += k * ((evy - fy) / dt - dy)
+        self._evf, self._dvf = (evx, evy), (dx, dy)
+        ax = ffx + VEL_XY_P * evx + VEL_XY_D * dx + self.ix
+        ay = ffy + VEL_XY_P * evy + VEL_XY_D * dy + self.iy
         amax = GRAVITY * math.tan(angle_max)
         a = math.sqrt(ax * ax + ay * ay)
         self._pos_err = (self.tpx - px, self.tpy - py)

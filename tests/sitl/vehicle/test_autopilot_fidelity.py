@@ -92,6 +92,19 @@ def test_position_target_speeds_up_at_the_jerk_limit_and_stops_on_the_goal():
     assert pc.tpx == pytest.approx(100.0, abs=0.01) and pc.tvx == pytest.approx(0.0, abs=0.01)
 
 
+def test_the_velocity_pid_low_passes_its_error_and_adds_the_derivative_as_arducopters():
+    # AC_PID_2D with PSC_VELXY_P 2, _D 0.25, FLTE = FLTD = 5 Hz: a 1 m/s velocity error appearing at once,
+    # one 10 ms step: alpha = 0.01 / (0.01 + 1 / (2 pi 5)) = 0.23906; the filtered error 0.23906 m/s, its
+    # derivative 0.23906 * 0.23906 / 0.01 = 5.7150 m/s^2; the demand 2 * 0.23906 + 0.25 * 5.7150 = 1.9069
+    # m/s^2 east, a roll of atan(1.9069 / g) with the nose north. Unfiltered, P alone gave 2.0.
+    pc = PositionController(8.0, 157.0)
+    pc.reset(0.0, 0.0, 20.0, 0.0, 0.0, 0.0, 0.0)
+    pc.tvx, pc.xy_external = 1.0, True  # a target velocity set from outside this step, not reshaped
+    roll, pitch = pc.update_xy(0.01, 0.0, 0.0, 0.0, 0.0, 0.0, math.radians(30.0))
+    assert roll == pytest.approx(math.atan(1.9069 / 9.80665), abs=2e-4)
+    assert pitch == pytest.approx(0.0, abs=1e-9)
+
+
 def test_a_guided_position_target_is_flown_on_a_straight_3d_line(airborne, run_for):
     """AC_PosControl::input_pos_xyz: 280 m north and 20 m up at WPNAV_SPEED 10 m/s and WPNAV_SPEED_UP
     2.5 m/s. The line rises 20 m in 280 m (slope 0.071, under 2.5 / 10), so the horizontal limit binds:

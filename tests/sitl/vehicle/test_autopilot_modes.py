@@ -236,7 +236,7 @@ def test_brake_stops_a_fast_vehicle_and_holds(airborne, run_for):
     assert ap.truth.vel_enu[0] > 7.0
     assert ap.request_mode(BRAKE).accepted
     x0 = ap.truth.pos_enu[0]
-    run_for(ap, 4.0)
+    run_for(ap, 4.5)  # under 2 m/s after 2 s; the last 1.7 m/s are closed by the position hold's sqrt controller
     assert _horizontal(ap.truth.vel_enu) < 0.3
     # stopping from 8 m/s near the 30 deg lean limit (5.7 m/s^2 at most): > 5.6 m, well under 16 m
     assert 5.0 < ap.truth.pos_enu[0] - x0 < 16.0
