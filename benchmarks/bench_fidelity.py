@@ -13,13 +13,13 @@ on the vehicle's clock (the latest ``time_boot_ms`` received before each), not o
 (leaves the ground -> within 1 m of 20 m), each leg (its first position target -> within 2 m of the
 waypoint, the GoTo's acceptance radius), corner overshoot (the largest distance from the next leg's
 line while flying it: how far the turn swings wide), mode request (RTL or LAND acknowledged) ->
-descent start (sinking at 0.3 m/s or more), descent (-> touchdown: sinking at less than 0.3 m/s again, the
-ground having stopped it), touchdown -> disarmed, and the landing error (horizontal distance from the
-arming point). The sink-rate and acceptance-radius crossings are interpolated between the 10 Hz GLOBAL_POSITION_INT samples,
-and the touchdown is found by the sink rate, not by the reported altitude: an estimate's altitude wanders
-on the ground by a decimetre or more (the built-in's EKF error), which moved a "within 0.3 m of the resting
-height" touchdown by a third of a second, and that band was crossed 0.6 s before contact at 0.5 m/s. ``rtl_start_speed_mps``
-says how the vehicle was moving when RTL came: still carrying speed towards home, it first stops and
+descent start (sinking at 0.3 m/s or more), descent (-> touchdown: sinking at less than 0.3 m/s again,
+the ground having stopped it), touchdown -> disarmed, and the landing error (horizontal distance from
+the arming point). The sink-rate and acceptance-radius crossings are interpolated between the 10 Hz
+GLOBAL_POSITION_INT samples, and the touchdown is found by the sink rate, not by the reported altitude:
+an estimate's altitude wanders on the ground by a decimetre or more (the built-in's EKF error), which
+moved a "within 0.3 m of the resting height" touchdown by a third of a second, and that band was
+crossed 0.6 s before contact at 0.5 m/s. ``rtl_start_speed_mps`` says how the vehicle was moving when RTL came: still carrying speed towards home, it first stops and
 creeps back (a few seconds more before the descent) than at rest over home; a tick late decides which.
 
 Backends: ``builtin`` (``chaser-bt sitl`` at ``--speedup``, seeded) and ``arducopter`` (the real

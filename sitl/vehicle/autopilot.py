@@ -53,6 +53,7 @@ from sitl.vehicle.modes import (
     FlightMode,
     Guided,
     PositionController,
+    lowpass_alpha,
     make_modes,
     wrap_pi,
 )
@@ -394,7 +395,7 @@ class Autopilot:
         v = (self.evx, self.evy, self.evz)
         a = [(now - last) / h for now, last in zip(v, self._land_last_vel)]
         self._land_last_vel = v
-        alpha = h / (h + 1.0 / (2.0 * math.pi * LAND_ACCEL_LPF_HZ))
+        alpha = lowpass_alpha(h, LAND_ACCEL_LPF_HZ)
         self._land_accel = [f + alpha * (x - f) for f, x in zip(self._land_accel, a)]
         ph = self.phys
         if not ph.on_ground:

@@ -345,7 +345,7 @@ class PositionController:
         """Advance the horizontal target and return the (roll, pitch) that tracks it."""
         ffx, ffy = self._shape_xy(dt)
         # the velocity PID (AC_PID_2D): its error and the error's derivative each low-passed at VEL_XY_FILT_HZ
-        k = dt / (dt + 1.0 / (2.0 * math.pi * VEL_XY_FILT_HZ))
+        k = lowpass_alpha(dt, VEL_XY_FILT_HZ)
         (fx, fy), (dx, dy) = self._evf, self._dvf
         evx = fx + k * (self.tvx + POS_XY_P * (self.tpx - px) - vx - fx)
         evy = fy + k * (self.tvy + POS_XY_P * (self.tpy - py) - vy - fy)
@@ -417,6 +417,11 @@ class PositionController:
             self.yaw_target = wrap_pi(self.yaw_target + self.yaw_rate_ff * dt)
         r = self.yaw_rate_ff + YAW_P * wrap_pi(self.yaw_target - yaw)
         return min(max(r, -rate_max), rate_max)
+
+
+def lowpass_alpha(dt: float, cutoff_hz: float) -> float:
+    """The step gain of a first-order low-pass at ``cutoff_hz`` (ArduPilot's LowPassFilter)."""
+    return dt / (dt + 1.0 / (2.0 * math.pi * cutoff_hz))
 
 
 def wrap_pi(a: float) -> float:
