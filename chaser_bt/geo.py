@@ -88,23 +88,25 @@ class NearbyGeodetic:
     A simulator converts every telemetry position (GPS and EKF, 8 a simulated second), and
     pymap3d's iterative ECEF -> geodetic costs 0.2 ms each: a quarter of the physics-only
     simulator's time. Here pymap3d converts exactly at an anchor point and 1 m along each ENU
-    axis from it; a point within ``radius_m`` of the anchor goes through that Jacobian, and a
-    point farther away becomes the new anchor. The first-order error is below
-    ``radius_m**2 / 6.3e6`` m (0.4 mm at 50 m), far under the 1e-7 degree (1.1 cm) of MAVLink's
-    integer positions. Within 1 degree of a pole every point is converted exactly.
+    axis from it; a point near the anchor goes through that Jacobian, and a point farther away
+    becomes the new anchor. "Near" is ``radius_m`` shrunk by ``sqrt(1 + tan|lat|)``, since the
+    meridians converge (the longitude's curvature grows with tan(lat)): the first-order error stays
+    below ``radius_m**2 / 6.3e6`` m (0.4 mm at 50 m) at any latitude, far under the 1e-7 degree
+    (1.1 cm) of MAVLink's integer positions. Within 1 degree of a pole every point is converted exactly.
     """
 
     def __init__(self, frame: LocalFrame, radius_m: float = 50.0) -> None:
         self.frame = frame
         self.radius_m = radius_m
         self._anchor: tuple[float, float, float] | None = None
+        self._reach = radius_m  # radius_m shrunk for the anchor's latitude
         self._geo0 = (0.0, 0.0, 0.0)
         self._jacobian = ((0.0,) * 3,) * 3  # rows: d(lat, lon, alt) / d(e, n, u)
 
     def __call__(self, enu: np.ndarray | tuple[float, float, float]) -> GeoPoint:
         e, n, u = float(enu[0]), float(enu[1]), float(enu[2])
         a = self._anchor
-        if a is None or abs(e - a[0]) + abs(n - a[1]) + abs(u - a[2]) > self.radius_m:
+        if a is None or abs(e - a[0]) + abs(n - a[1]) + abs(u - a[2]) > self._reach:
             return self._anchor_at(e, n, u)
         de, dn, du = e - a[0], n - a[1], u - a[2]
         (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = self._jacobian
@@ -126,6 +128,7 @@ class NearbyGeodetic:
             tuple(s.alt_m - exact.alt_m for s in steps),
         )
         self._anchor, self._geo0 = (e, n, u), (exact.lat_deg, exact.lon_deg, exact.alt_m)
+        self._reach = self.radius_m / math.sqrt(1.0 + abs(math.tan(math.radians(exact.lat_deg))))
         return exact
 
 
