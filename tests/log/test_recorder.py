@@ -9,6 +9,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import cv2
@@ -151,10 +152,15 @@ def test_a_threaded_camera_is_recorded_from_its_results_on_the_ticks_thread(tmp_
     from chaser_bt.vision.pipeline import CameraSensor, OwnshipPose, PipelineConfig, VisionPipeline
 
     class Source:
+        """Gives a frame only when the test lets one through, so no result lands between the test's reads."""
+
         def __init__(self):
             self.reads = 0
+            self.gate = threading.Semaphore(0)
 
         def read(self, t):
+            if not self.gate.acquire(timeout=0.01):
+                return None
             self.reads += 1
             return Frame(t, np.full((48, 64, 3), self.reads % 250, np.uint8), self.reads)
 
@@ -180,12 +186,14 @@ def test_a_threaded_camera_is_recorded_from_its_results_on_the_ticks_thread(tmp_
     try:
         for k in range(3):
             worker.submit(OwnshipPose(wall.now(), np.array([0.0, 0.0, 20.0]), np.zeros(3), Rotation.identity()))
-            for _ in range(2000):  # a new result (bounded: only a broken worker runs out)
+            source.gate.release()  # one frame, then none until the next round
+            for _ in range(2000):  # its result (bounded: only a broken worker runs out)
                 latest = worker.latest()
-                if latest is not None and latest.estimate is not None and (not results or latest is not results[-1]):
+                if latest is not None and latest.estimate is not None and latest.frame.index == k + 1:
                     break
                 worker._stop.wait(0.01)
             results.append(worker.latest())
+            assert results[-1].frame.index == k + 1
             clock.set(1.0 + 0.1 * k)
             runner.tick()
             runner.tick()  # a tick without a new result records nothing more
