@@ -8,8 +8,10 @@ The search-and-rescue mission (trees/sar.yaml, docs/sar.md) is the chase with th
   it; then it is spent: no longer written, so it ages like a radar cue whose track ended (FAILURE),
   which moves the mission from fly-out to search exactly as a lost radar cue does in the chase.
 - :class:`ReportFind` turns the camera's person estimates into a :class:`~chaser_bt.find.Find`
-  (ground fixes, robust median) on ``/sar/find`` and logs it.
-- :class:`LoiterOverFind` holds over the find in GUIDED instead of following.
+  (ground fixes, robust median): a candidate on ``/sar/candidate`` until a closer look confirms it
+  (:class:`~chaser_bt.find.FindCheck`), then the find on ``/sar/find``, logged.
+- :class:`FindCandidate` and :class:`LoiterOverFind` (on the candidate): the closer look; then
+  LoiterOverFind holds over the find in GUIDED instead of following.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from behaviours.base import CommandingBehaviour, VehicleBehaviour, optional_inpu
 from behaviours.goto import WaypointFrame
 from chaser_bt.cue import TargetCue, TargetEstimate
 from chaser_bt.control.cue_approach import approach_point
-from chaser_bt.find import Find, FindEstimator
+from chaser_bt.find import Find, FindCheck, FindEstimator, FindVerdict
 from chaser_bt.geo import GeoPoint
 from chaser_bt.tree import NodeKind, input_port, output_port, register_behaviour
 
@@ -34,6 +36,7 @@ log = logging.getLogger(__name__)
 CUE_KEY = "/target/cue"
 ESTIMATE_KEY = "/target/estimate"
 FIND_KEY = "/sar/find"
+CANDIDATE_KEY = "/sar/candidate"
 
 
 @register_behaviour
@@ -106,10 +109,15 @@ class OperatorCue(VehicleBehaviour):
 
 @register_behaviour
 class ReportFind(VehicleBehaviour):
-    """Fix the person on the ground from each fresh, confident camera estimate; write the find.
+    """Fix the person on the ground from each fresh, confident camera estimate; write the find once confirmed.
 
-    SUCCESS once ``min_fixes`` fixes agree over ``min_span_s`` (the find is written to ``find`` and logged, and refined
-    on every later tick); FAILURE before that. Fixes are kept for the whole mission.
+    Once ``min_fixes`` fixes agree over ``min_span_s`` they make a candidate, written to ``candidate``
+    (FAILURE: the tree flies closer, LoiterOverFind on the candidate). New agreeing fixes from within
+    ``check_range_m``, ``check_fixes`` of them over ``min_span_s``, confirm it: it is written to ``find``, logged, refined on every later tick, and
+    the node succeeds from then on. A candidate the vehicle has been within ``check_range_m`` of for
+    ``check_timeout_s`` without that is rejected: ``candidate`` is cleared and fixes in its place are
+    ignored (:class:`~chaser_bt.find.FindCheck`). ``check_range_m`` 0 reports the first candidate.
+    Fixes are kept for the whole mission.
     """
 
     NODE_KIND = NodeKind.ACTION
@@ -124,20 +132,35 @@ class ReportFind(VehicleBehaviour):
         "min_fixes": input_port(int, "Agreeing fixes needed for a find", default=5, minimum=1),
         "min_span_s": input_port(float, "The agreeing fixes must span this long (s): one false detection carried by "
                                         "the trackers does not", default=2.0, minimum=0),
+        "check_range_m": input_port(float, "A closer look: new fixes from within this range (m) confirm a candidate; "
+                                           "0 = report the first candidate", default=0.0, minimum=0),
+        "check_fixes": input_port(int, "New close fixes that confirm a candidate", default=3, minimum=1),
+        "check_timeout_s": input_port(float, "Reject a candidate not confirmed after this long near it (s)", default=15.0,
+                                      above=0),
         "state": state_port(),
     }
-    OUTPUT_PORTS = {"find": output_port(Find, "The person's position, geodetic point and confidence", default_key=FIND_KEY)}
+    OUTPUT_PORTS = {
+        "find": output_port(Find, "The person's position, geodetic point and confidence", default_key=FIND_KEY),
+        "candidate": output_port(Find, "A find waiting for the closer look (cleared when rejected)",
+                                 default_key=CANDIDATE_KEY),
+    }
 
     def setup(self, **kwargs: Any) -> None:
         super().setup(**kwargs)
         self._estimator: FindEstimator | None = None
+        self._check: FindCheck | None = None
         self._last_t = -np.inf
         self._reported: Find | None = None
+        self._has_candidate = False
 
     def update(self) -> Status:
         if self._estimator is None:
-            self._estimator = FindEstimator(self.get_input("plane_z_m"), self.get_input("max_range_m"),
-                                            self.get_input("gate_m"), self.get_input("min_fixes"), self.get_input("min_span_s"))
+            gate = self.get_input("gate_m")
+            self._estimator = FindEstimator(self.get_input("plane_z_m"), self.get_input("max_range_m"), gate,
+                                            self.get_input("min_fixes"), self.get_input("min_span_s"))
+            if self.get_input("check_range_m") > 0:
+                self._check = FindCheck(self.get_input("check_range_m"), self.get_input("check_fixes"),
+                                        self.get_input("min_span_s"), self.get_input("check_timeout_s"), gate)
         est: TargetEstimate | None = optional_input(self, "estimate")
         if (est is not None and est.t > self._last_t and est.age(self._now()) <= self.get_input("max_age_s")
                 and est.confidence >= self.get_input("min_confidence")):
@@ -145,14 +168,57 @@ class ReportFind(VehicleBehaviour):
             self._estimator.add(est)
         find = self._estimator.find(self._link().frame)
         if find is None:
+            self._clear_candidate()
             self.feedback_message = f"{self._estimator.fix_count} ground fix(es), no find yet"
             return Status.FAILURE
+        if self._check is not None:
+            verdict = self._check.update(self._now(), self.state.position_enu, find, self._estimator)
+            if verdict is FindVerdict.REJECTED:
+                dropped = self._estimator.reject(find.position_enu)
+                self._clear_candidate()
+                log.warning("candidate find at %s m rejected: not seen again within %.0f m for %.0f s (%d fixes dropped)",
+                            np.round(find.position_enu[:2], 1).tolist(), self._check.close_m, self._check.timeout_s, dropped)
+                self.feedback_message = f"candidate at {np.round(find.position_enu[:2], 1).tolist()} m rejected"
+                return Status.FAILURE
+            if verdict is FindVerdict.PENDING:
+                self._set_output("candidate", find)
+                self._has_candidate = True
+                self.feedback_message = (f"candidate at {np.round(find.position_enu[:2], 1).tolist()} m: "
+                                         f"{self._check.close_fixes(find, self._estimator)} of {self._check.confirm_fixes} "
+                                         f"close fixes, looking closer")
+                return Status.FAILURE
+        self._clear_candidate()
         self._set_output("find", find)
         if self._reported is None or np.linalg.norm(find.position_enu - self._reported.position_enu) > 1.0:
             log.info("person found: %s", find.to_dict())
             self._reported = find
         self.feedback_message = (f"find at {np.round(find.position_enu[:2], 1).tolist()} m, +-{find.std_m:.1f} m, "
                                  f"{find.fixes} fixes")
+        return Status.SUCCESS
+
+    def _clear_candidate(self) -> None:
+        if self._has_candidate:
+            self.reset_port("candidate")
+            self._has_candidate = False
+
+
+@register_behaviour
+class FindCandidate(VehicleBehaviour):
+    """SUCCESS while a candidate find waits for the closer look (ReportFind's ``candidate``), else FAILURE."""
+
+    NODE_KIND = NodeKind.CONDITION
+    INPUT_PORTS = {
+        "candidate": input_port(Find, "The candidate find", required=False, default_key=CANDIDATE_KEY),
+        "state": state_port(),
+    }
+    OUTPUT_PORTS: dict = {}
+
+    def update(self) -> Status:
+        candidate: Find | None = optional_input(self, "candidate")
+        if candidate is None:
+            self.feedback_message = "no candidate"
+            return Status.FAILURE
+        self.feedback_message = f"candidate at {np.round(candidate.position_enu[:2], 1).tolist()} m"
         return Status.SUCCESS
 
 

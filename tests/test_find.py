@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from chaser_bt.cue import TargetEstimate
-from chaser_bt.find import FindEstimator, ground_fix
+from chaser_bt.find import FindCheck, FindEstimator, FindVerdict, ground_fix
 from chaser_bt.geo import GeoPoint, LocalFrame
 
 S2 = math.sqrt(0.5)
@@ -109,3 +109,75 @@ def test_fixes_must_span_the_minimum_time():
     assert est.find() is None
     est.add(estimate([0, 0, 20], [10, 30, -20], t=12.0))  # 2.0 s: confirmed
     assert est.find().t == 12.0
+
+
+def _agreeing(est, point, times, camera=(0.0, 0.0, 20.0)):
+    """Add fixes of the ground ``point`` (ENU, on the plane z = 0) seen from ``camera`` at ``times``."""
+    c = np.asarray(camera, float)
+    for t in times:
+        assert est.add(estimate(c, np.asarray(point, float) - c, t=t))
+
+
+def test_support_counts_later_close_agreeing_fixes_and_their_span():
+    est = FindEstimator(plane_z_m=0.0, max_range_m=500.0, gate_m=5.0, min_fixes=3)
+    _agreeing(est, [40, 0, 0], [1.0, 2.0, 3.0], camera=(0, 0, 30))  # 50 m away (30-40-50 triangle)
+    _agreeing(est, [40, 0, 0], [4.0, 5.5], camera=(40, -16, 12))  # 20 m away (12-16-20)
+    _agreeing(est, [60, 0, 0], [6.0], camera=(40, -16, 12))  # close, but 20 m from the point: does not agree
+    assert est.support([40, 0, 0], since_t=0.0, within_m=60.0) == (5, 4.5)
+    assert est.support([40, 0, 0], since_t=0.0, within_m=20.5) == (2, 1.5)  # only the two close ones
+    assert est.support([40, 0, 0], since_t=4.0, within_m=20.5) == (1, 0.0)  # later than 4.0 only
+    assert est.support([40, 0, 0], since_t=9.0, within_m=60.0) == (0, 0.0)
+
+
+def test_a_rejected_place_loses_its_fixes_and_ignores_new_ones():
+    est = FindEstimator(plane_z_m=0.0, max_range_m=500.0, gate_m=5.0, min_fixes=3)
+    _agreeing(est, [40, 0, 0], [1.0, 2.0, 3.0])
+    _agreeing(est, [80, 30, 0], [4.0, 5.0, 6.0, 7.0])  # the person, 50 m from the post
+    assert est.find().fixes == 4  # the person's four outvote the post's three
+    assert est.reject([41, 1, 0]) == 3  # the three fixes of the post (within 5 m of (41, 1))
+    assert est.fix_count == 4
+    assert not est.add(estimate([0, 0, 20], [43, 0, -20], t=8.0))  # 2 m from the rejected place
+    assert est.ignored_fixes == 1 and est.fix_count == 4
+    np.testing.assert_allclose(est.find().position_enu[:2], [80, 30], atol=1e-9)
+
+
+def test_a_candidate_seen_again_from_close_by_is_confirmed():
+    est = FindEstimator(plane_z_m=0.0, max_range_m=500.0, gate_m=5.0, min_fixes=3)
+    check = FindCheck(close_m=25.0, confirm_fixes=2, min_span_s=1.0, timeout_s=10.0, gate_m=5.0)
+    _agreeing(est, [40, 0, 0], [1.0, 2.0, 3.0], camera=(0, 0, 30))  # from 50 m: a candidate
+    candidate = est.find()
+    assert check.update(3.0, [0, 0, 30], candidate, est) is FindVerdict.PENDING
+    # Close fixes taken before the candidate was put forward would not count; these come after.
+    _agreeing(est, [40, 0, 0], [4.0], camera=(40, -16, 12))  # one close fix (20 m)
+    assert check.update(4.0, [40, -16, 12], est.find(), est) is FindVerdict.PENDING
+    assert check.close_fixes(est.find(), est) == 1
+    _agreeing(est, [40, 0, 0], [4.5], camera=(40, -16, 12))  # two, but over 0.5 s only
+    assert check.update(4.5, [40, -16, 12], est.find(), est) is FindVerdict.PENDING
+    _agreeing(est, [40, 0, 0], [5.0], camera=(40, -16, 12))  # three over 1.0 s
+    assert check.update(5.0, [40, -16, 12], est.find(), est) is FindVerdict.CONFIRMED
+    assert check.update(99.0, [500, 500, 30], est.find(), est) is FindVerdict.CONFIRMED  # latched
+
+
+def test_a_candidate_not_seen_again_while_near_is_rejected_after_the_timeout():
+    est = FindEstimator(plane_z_m=0.0, max_range_m=500.0, gate_m=5.0, min_fixes=3)
+    check = FindCheck(close_m=25.0, confirm_fixes=2, min_span_s=0.0, timeout_s=10.0, gate_m=5.0)
+    _agreeing(est, [40, 0, 0], [1.0, 2.0, 3.0], camera=(0, 0, 30))
+    candidate = est.find()
+    # Far away (40 m horizontally) for a long time: no verdict, the vehicle has not looked yet.
+    assert check.update(3.0, [0, 0, 30], candidate, est) is FindVerdict.PENDING
+    assert check.update(50.0, [0, 0, 30], candidate, est) is FindVerdict.PENDING
+    # Near from t = 60 on (24 m horizontally), nothing seen: pending until 70, rejected at 70.
+    assert check.update(60.0, [40, -24, 12], candidate, est) is FindVerdict.PENDING
+    assert check.update(69.9, [40, -24, 12], candidate, est) is FindVerdict.PENDING
+    assert check.update(70.0, [40, -24, 12], candidate, est) is FindVerdict.REJECTED
+    # A candidate elsewhere (more than gate_m away) is a new one, with its own clock.
+    other = FindEstimator(plane_z_m=0.0, max_range_m=500.0, gate_m=5.0, min_fixes=3)
+    _agreeing(other, [40, 20, 0], [71.0, 72.0, 73.0], camera=(0, 0, 30))
+    assert check.update(73.0, [40, -4, 12], other.find(), other) is FindVerdict.PENDING
+    assert check.update(82.9, [40, -4, 12], other.find(), other) is FindVerdict.PENDING
+    assert check.update(83.0, [40, -4, 12], other.find(), other) is FindVerdict.REJECTED
+
+
+def test_find_check_refuses_impossible_settings():
+    with pytest.raises(ValueError, match="timeout_s"):
+        FindCheck(timeout_s=0.0)

@@ -98,6 +98,72 @@ def test_report_find_ignores_stale_estimates(vehicle):
     assert "0 ground fix" in runner.tree.root.feedback_message
 
 
+def _see(vehicle, runner, point, camera, seconds, confidence=0.9):
+    """Write a fresh person estimate of ``point`` seen from ``camera`` before each tick for ``seconds``."""
+    point, camera = np.asarray(point, float), np.asarray(camera, float)
+    b = (point - camera) / np.linalg.norm(point - camera)
+    statuses = []
+
+    def step() -> bool:
+        now = vehicle.clock.now()
+        BB.set("/target/estimate", TargetEstimate(t=now, position_enu=camera + 10.0 * b, bearing_enu=b, range_m=10.0,
+                                                  confidence=confidence))
+        if runner.tick_if_due():
+            statuses.append(runner.status)
+        return False
+
+    vehicle.run_until(step, seconds)
+    return statuses
+
+
+CHECKED = "ReportFind: {min_fixes: 3, min_span_s: 0.5, check_range_m: 30, check_fixes: 3, check_timeout_s: 5}"
+
+
+def test_a_candidate_is_reported_only_after_a_closer_look(vehicle):
+    vehicle.run_until(lambda: vehicle.link.frame is not None, 30)
+    runner = runner_for(vehicle, CHECKED)
+    person = np.array([100.0, 0.0, 0.5])
+    # Seen from 50 m (camera at (60, -30, 20.5)): a candidate, no find; FAILURE so the tree flies closer.
+    statuses = _see(vehicle, runner, person, [60.0, -30.0, 20.5], 1.0)
+    assert set(statuses) == {Status.FAILURE}
+    candidate: Find = BB.get("/sar/candidate")
+    np.testing.assert_allclose(candidate.position_enu, person, atol=1e-6)
+    assert "/sar/find" not in BB.storage and "looking closer" in runner.tree.root.feedback_message
+    # Seen again from 29 m (camera 25 m off horizontally, 15 m up): confirmed once three new close fixes span 0.5 s.
+    statuses = _see(vehicle, runner, person, [85.0, -20.0, 15.5], 1.0)
+    assert statuses[-1] == Status.SUCCESS and statuses[0] == Status.FAILURE
+    find: Find = BB.get("/sar/find")
+    np.testing.assert_allclose(find.position_enu, person, atol=1e-6)
+    assert "/sar/candidate" not in BB.storage  # cleared once confirmed
+
+
+def test_a_candidate_not_seen_again_near_the_vehicle_is_rejected_and_its_place_ignored(vehicle, caplog):
+    vehicle.run_until(lambda: vehicle.link.frame is not None, 30)
+    runner = runner_for(vehicle, CHECKED)
+    post = np.array([20.0, 0.0, 0.5])  # 20 m from the vehicle on the ground at home: near from the start
+    statuses = _see(vehicle, runner, post, [0.0, -40.0, 20.5], 1.0)
+    assert set(statuses) == {Status.FAILURE} and "/sar/candidate" in BB.storage
+    statuses = tick_for(vehicle, runner, 4.5)  # no more detections: still a candidate until 5 s near it
+    assert "/sar/candidate" in BB.storage
+    with caplog.at_level("WARNING"):
+        tick_for(vehicle, runner, 1.0)
+    assert "/sar/candidate" not in BB.storage and "/sar/find" not in BB.storage
+    assert "rejected" in caplog.text
+    # Detections there again are ignored: no candidate comes back.
+    _see(vehicle, runner, post + [2.0, 0.0, 0.0], [0.0, -40.0, 20.5], 1.0)
+    assert "/sar/candidate" not in BB.storage and "0 ground fix" in runner.tree.root.feedback_message
+
+
+def test_find_candidate_holds_while_a_candidate_waits(vehicle):
+    vehicle.run_until(lambda: vehicle.link.frame is not None, 30)
+    runner = runner_for(vehicle, "FindCandidate: {}")
+    assert set(tick_for(vehicle, runner, 0.3)) == {Status.FAILURE}
+    BB.set("/sar/candidate", Find(t=0.0, position_enu=np.array([12.0, -3.0, 0.5]), geodetic=None, std_m=1.0,
+                                  confidence=0.5, fixes=5))
+    assert set(tick_for(vehicle, runner, 0.3)) == {Status.SUCCESS}
+    assert runner.tree.root.feedback_message == "candidate at [12.0, -3.0] m"
+
+
 def test_loiter_holds_at_the_standoff_facing_the_find(vehicle):
     take_off(vehicle, 15)
     find_enu = np.array([40.0, 30.0, 0.5])

@@ -112,7 +112,7 @@ def test_the_diff_sees_a_node_swapped_outside_a_subtree_slot():
 PERSON_WEIGHTS = ROOT / "chaser_bt" / "vision" / "weights" / "person_yolo.pt"
 SEED = 5  # the person lies 56 m from the last-known position: fly out, search, find (~140 s simulated)
 CAMERA_SIZE = (416, 312)
-EXPECTED_PHASES = ["launch", "fly_to_cue", "search", "loiter", "return"]  # "wait" lasts less than a tick
+EXPECTED_PHASES = ["launch", "fly_to_cue", "search", "check", "loiter", "return"]  # "wait" lasts less than a tick
 
 
 @pytest.mark.slow
