@@ -5,7 +5,8 @@ Held-out: ``sitl.bench.camera_dataset`` split "heldout" (other ground seeds, wid
 the person detector (search and rescue) on a held-out person set, seed 778. Per domain (issue 16): the
 drone detector at 416 on held-out-split frames, half of them chase views, in the training camera-world
 families (meadow, farmland, arid, winter, suburb; keys ``*_families``) and in the held-out families
-(coast, moor; keys ``*_cross``), seed 779; the plain field is the first set. Pipeline quality: the
+(coast, moor; keys ``*_cross``), seed 779; the plain field is the first set; the person detector
+likewise (keys ``*_person_416_families``, ``*_person_416_cross``), seed 779. Pipeline quality: the
 share of labelled frames whose reported box is right (IoU >= 0.5), the bearing error p95 at the box
 centre on those frames (the acceptance's wording) and on every frame with an estimate.
 Speeds are single-threaded (torch and OpenCV), the setting measured fastest on the shared CPU.
@@ -14,7 +15,7 @@ copy (``<stem>.int8.onnx``, ``chaser-bt quantize-detector``) sits beside the wei
 for it follow under the same key with ``_int8`` appended, its frames/s taken right after the float
 one's on the same frames (the ratio is what to read on a shared machine). The pipeline follows the
 auto backend (int8 when current).
-Usage: python benchmarks/bench_vision.py [--quick] [--weights W.pt] (default: the shipped drone detector)
+Usage: python benchmarks/bench_vision.py [--quick] [--weights W.pt] [--person-weights P.pt] (default: the shipped detectors)
 """
 
 from __future__ import annotations
@@ -97,23 +98,32 @@ def domain_metrics(n: int, seed: int, weights: str) -> dict:
     return out
 
 
-def person_metrics(n: int, seed: int) -> dict:
-    """AP@0.5 etc. of the shipped person detector at 416 on held-out person frames (None without its weights)."""
-    if not SHIPPED_WEIGHTS["person_yolo"].exists():
+def person_metrics(n: int, seed: int, weights: str) -> dict:
+    """AP@0.5 etc. of the person detector at 416 on held-out person frames: the plain field (seed ``seed``;
+    keys ``*_person_416``) and, on ``n // 2`` frames each, the training and the held-out camera-world
+    families (seed ``seed + 1``; keys ``*_person_416_families``, ``*_person_416_cross``); {} without weights."""
+    from pathlib import Path
+
+    if not Path(weights).exists():
         return {}
-    data = DatasetRenderer("heldout", kinds=PERSON_CLASSES)
-    rng = np.random.default_rng(seed)
-    frames = [data.sample(rng) for _ in range(n)]
     out = {}
-    dets = variants(str(SHIPPED_WEIGHTS["person_yolo"]), image_size=416, conf_threshold=0.005, threads=1)
-    for v, det in dets.items():
-        preds = [[(d.box, d.score, d.class_id) for d in det(f.image)] for f in frames]
-        m = evaluate_detections(preds, [frame_boxes(f, PERSON_CLASSES) for f in frames], 1)
-        out.update({f"ap50_person_416{v}": round(m.ap50, 4), f"iou_person_416{v}": round(m.iou, 4), f"p_person_416{v}": round(m.precision, 4),
-                    f"r_person_416{v}": round(m.recall, 4)})
+    dets = variants(weights, image_size=416, conf_threshold=0.005, threads=1)
+    domains = (("", (), n, seed), ("_families", TRAINING_FAMILIES, n // 2, seed + 1),
+               ("_cross", HELDOUT_FAMILIES, n // 2, seed + 1))
+    plain_images = []
+    for key, families, count, domain_seed in domains:
+        data = DatasetRenderer("heldout", kinds=PERSON_CLASSES, families=families)
+        rng = np.random.default_rng(domain_seed)
+        frames = [data.sample(rng) for _ in range(count)]
+        plain_images = plain_images or [f.image for f in frames[: min(count, 100)]]
+        for v, det in dets.items():
+            preds = [[(d.box, d.score, d.class_id) for d in det(f.image)] for f in frames]
+            m = evaluate_detections(preds, [frame_boxes(f, PERSON_CLASSES) for f in frames], 1)
+            out.update({f"ap50_person_416{key}{v}": round(m.ap50, 4), f"iou_person_416{key}{v}": round(m.iou, 4),
+                        f"p_person_416{key}{v}": round(m.precision, 4), f"r_person_416{key}{v}": round(m.recall, 4)})
     for v, det in dets.items():
         det.conf_threshold = 0.25
-        out[f"fps_person_416{v}"] = round(frames_per_second(det, [f.image for f in frames[: min(n, 100)]]), 1)
+        out[f"fps_person_416{v}"] = round(frames_per_second(det, plain_images), 1)
     return out
 
 
@@ -177,13 +187,15 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--weights", default=str(SHIPPED_WEIGHTS["tiny_yolo"]), help="drone detector weights (default: the shipped ones)")
+    ap.add_argument("--person-weights", default=str(SHIPPED_WEIGHTS["person_yolo"]),
+                    help="person detector weights (default: the shipped ones)")
     args = ap.parse_args()
     torch.set_num_threads(1)
     cv2.setNumThreads(1)
     n_det, n_follow, n_render = (120, 240, 60) if args.quick else (600, 900, 300)
     det = detector_metrics(n_det, 777, args.weights)
     domains = domain_metrics(n_det // 4 if args.quick else n_det // 2, 779, args.weights)
-    person = person_metrics(n_det // 2, 778)
+    person = person_metrics(n_det // 2, 778, args.person_weights)
     fol = follow_metrics(n_follow, 5, args.weights)
     det_backend = Detector(args.weights).backend
     figures = {}

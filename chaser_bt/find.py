@@ -158,7 +158,6 @@ class FindEstimator:
                     std_m=spread / math.sqrt(n), confidence=float(np.clip(n / len(pts) * conf.mean(), 0.0, 1.0)), fixes=n)
 
 
-
 class FindVerdict(enum.Enum):
     """What the closer look made of a candidate."""
 
