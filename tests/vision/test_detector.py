@@ -188,11 +188,13 @@ def test_ctrl_c_during_training_writes_a_checkpoint_that_resumes(tmp_path):
 
 
 def _matched_ious(a, b):
-    """IoU of each detection of ``a`` with its best same-class match in ``b`` (greedy, best score first)."""
+    """IoU of each detection of ``a`` with its best overlapping same-class match in ``b`` (greedy, best
+    score first); a box nothing overlaps is unmatched (two near-threshold false boxes in different
+    places are two misses, not a match of IoU 0)."""
     used, ious = set(), []
     for x in a:
-        cand = [(float(iou_matrix(np.array([x.box]), np.array([y.box]))[0, 0]), j) for j, y in enumerate(b)
-                if j not in used and y.class_id == x.class_id]
+        cand = [(iou, j) for j, y in enumerate(b) if j not in used and y.class_id == x.class_id
+                and (iou := float(iou_matrix(np.array([x.box]), np.array([y.box]))[0, 0])) > 0.0]
         if cand:
             iou, j = max(cand)
             used.add(j)
