@@ -112,12 +112,13 @@ class ReportFind(VehicleBehaviour):
     """Fix the person on the ground from each fresh, confident camera estimate; write the find once confirmed.
 
     Once ``min_fixes`` fixes agree over ``min_span_s`` they make a candidate, written to ``candidate``
-    (FAILURE: the tree flies closer, LoiterOverFind on the candidate). New agreeing fixes from within
-    ``check_range_m``, ``check_fixes`` of them over ``min_span_s``, confirm it: it is written to ``find``, logged, refined on every later tick, and
-    the node succeeds from then on. A candidate the vehicle has been within ``check_range_m`` of for
-    ``check_timeout_s`` without that is rejected: ``candidate`` is cleared and fixes in its place are
-    ignored (:class:`~chaser_bt.find.FindCheck`). ``check_range_m`` 0 reports the first candidate.
-    Fixes are kept for the whole mission.
+    (FAILURE: the tree flies closer, LoiterOverFind on the candidate). ``check_fixes`` new agreeing
+    fixes from within ``check_range_m``, spanning ``min_span_s``, confirm it: it is written to
+    ``find``, logged, refined on every later tick, and the node succeeds from then on. A candidate
+    the vehicle has been within ``check_range_m`` of for ``check_timeout_s`` without that is
+    rejected: ``candidate`` is cleared and fixes in its place are ignored
+    (:class:`~chaser_bt.find.FindCheck`). ``check_range_m`` 0 reports the first candidate. Fixes are
+    kept for the whole mission.
     """
 
     NODE_KIND = NodeKind.ACTION
