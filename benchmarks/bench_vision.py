@@ -87,14 +87,25 @@ def domain_metrics(n: int, seed: int, weights: str) -> dict:
     out = {}
     dets = variants(weights, image_size=416, conf_threshold=0.005, threads=1)
     for key, families in (("families", TRAINING_FAMILIES), ("cross", HELDOUT_FAMILIES)):
-        data = DatasetRenderer("heldout", follow_share=0.5, families=families)
-        rng = np.random.default_rng(seed)
-        frames = [data.sample(rng) for _ in range(n)]
-        for v, det in dets.items():
-            preds = [[(d.box, d.score, d.class_id) for d in det(f.image)] for f in frames]
-            m = evaluate_detections(preds, [frame_boxes(f) for f in frames], len(det.class_names))
-            out.update({f"ap50_416_{key}{v}": round(m.ap50, 4), f"p_416_{key}{v}": round(m.precision, 4),
-                        f"r_416_{key}{v}": round(m.recall, 4), f"iou_416_{key}{v}": round(m.iou, 4)})
+        frames = _render(DatasetRenderer("heldout", follow_share=0.5, families=families), n, seed)
+        out.update(_scores(dets, frames, f"_416_{key}"))
+    return out
+
+
+def _render(data: DatasetRenderer, n: int, seed: int) -> list:
+    rng = np.random.default_rng(seed)
+    return [data.sample(rng) for _ in range(n)]
+
+
+def _scores(dets: dict[str, Detector], frames: list, infix: str, classes: tuple[str, ...] | None = None) -> dict:
+    """``ap50{infix}{variant}``, ``p``, ``r`` and ``iou`` of each detector variant on ``frames``."""
+    out = {}
+    for v, det in dets.items():
+        preds = [[(d.box, d.score, d.class_id) for d in det(f.image)] for f in frames]
+        truth = [frame_boxes(f) if classes is None else frame_boxes(f, classes) for f in frames]
+        m = evaluate_detections(preds, truth, len(det.class_names))
+        out.update({f"ap50{infix}{v}": round(m.ap50, 4), f"p{infix}{v}": round(m.precision, 4),
+                    f"r{infix}{v}": round(m.recall, 4), f"iou{infix}{v}": round(m.iou, 4)})
     return out
 
 
@@ -106,24 +117,15 @@ def person_metrics(n: int, seed: int, weights: str) -> dict:
 
     if not Path(weights).exists():
         return {}
-    out = {}
     dets = variants(weights, image_size=416, conf_threshold=0.005, threads=1)
-    domains = (("", (), n, seed), ("_families", TRAINING_FAMILIES, n // 2, seed + 1),
-               ("_cross", HELDOUT_FAMILIES, n // 2, seed + 1))
-    plain_images = []
-    for key, families, count, domain_seed in domains:
-        data = DatasetRenderer("heldout", kinds=PERSON_CLASSES, families=families)
-        rng = np.random.default_rng(domain_seed)
-        frames = [data.sample(rng) for _ in range(count)]
-        plain_images = plain_images or [f.image for f in frames[: min(count, 100)]]
-        for v, det in dets.items():
-            preds = [[(d.box, d.score, d.class_id) for d in det(f.image)] for f in frames]
-            m = evaluate_detections(preds, [frame_boxes(f, PERSON_CLASSES) for f in frames], 1)
-            out.update({f"ap50_person_416{key}{v}": round(m.ap50, 4), f"iou_person_416{key}{v}": round(m.iou, 4),
-                        f"p_person_416{key}{v}": round(m.precision, 4), f"r_person_416{key}{v}": round(m.recall, 4)})
+    plain = _render(DatasetRenderer("heldout", kinds=PERSON_CLASSES), n, seed)
+    out = _scores(dets, plain, "_person_416", PERSON_CLASSES)
+    for key, families in (("families", TRAINING_FAMILIES), ("cross", HELDOUT_FAMILIES)):
+        frames = _render(DatasetRenderer("heldout", kinds=PERSON_CLASSES, families=families), n // 2, seed + 1)
+        out.update(_scores(dets, frames, f"_person_416_{key}", PERSON_CLASSES))
     for v, det in dets.items():
         det.conf_threshold = 0.25
-        out[f"fps_person_416{v}"] = round(frames_per_second(det, plain_images), 1)
+        out[f"fps_person_416{v}"] = round(frames_per_second(det, [f.image for f in plain[: min(n, 100)]]), 1)
     return out
 
 
