@@ -113,27 +113,42 @@ def _train_refiner(args: argparse.Namespace) -> int:
 
     from chaser_bt.vision.detector.refine import (
         RefinerConfig,
+        false_detections,
+        make_negative_set,
         make_refiner_set,
         train_refiner,
     )
     from chaser_bt.vision.detector.train import load_yolo_folder
 
     torch.set_num_threads(args.threads)
-    config = RefinerConfig()
+    config = RefinerConfig(scores=args.negatives_from is not None)
     rng = np.random.default_rng(args.seed)
-    sets = []
+    sets, negatives = [], []
     try:
+        detect = None
+        if args.negatives_from is not None:
+            from chaser_bt.vision.detector.inference import Detector
+
+            _check_weights(args.negatives_from)
+            detect = Detector(args.negatives_from, conf_threshold=args.negative_conf, threads=args.threads, refiner=None)
         for folder in args.data:
             if not (Path(folder) / "images").is_dir():
                 raise ValueError(f"--data {folder}: no images/ folder (YOLO layout expected)")
             images, boxes, _ = load_yolo_folder(folder, 640)  # 640 x 480 frames stay at full resolution
             sets.append(make_refiner_set(images, boxes, config, args.per_label, rng))
-            print(f"{folder}: {len(sets[-1][0])} crops", file=sys.stderr)
+            if detect is not None:
+                negatives.append(make_negative_set(images, false_detections(detect, images, boxes), config))
+            print(f"{folder}: {len(sets[-1][0])} crops" + (f", {len(negatives[-1][0])} of false boxes" if negatives else ""),
+                  file=sys.stderr)
     except (ValueError, FileNotFoundError) as e:
         print(f"chaser-bt: {e}", file=sys.stderr)
         return 2
     crops, given, targets = (np.concatenate(parts) for parts in zip(*sets))
-    out = train_refiner(crops, given, targets, args.out, config, steps=args.steps, seed=args.seed)
+    negative_set = tuple(np.concatenate(parts) for parts in zip(*negatives)) if negatives else None
+    if negative_set is not None and len(negative_set[0]) == 0:
+        print(f"chaser-bt: --negatives-from {args.negatives_from}: the detector made no false boxes on --data", file=sys.stderr)
+        return 2
+    out = train_refiner(crops, given, targets, args.out, config, steps=args.steps, seed=args.seed, negatives=negative_set)
     print(f"refiner written to {out}")
     try:  # the copy the detector runs in onnxruntime, without torch
         from chaser_bt.vision.detector.refine import export_refiner_onnx
@@ -177,7 +192,8 @@ def _quantize(args: argparse.Namespace) -> int:
             frames = read_frames(args.calib, args.frames)
         except ValueError as e:
             raise ValueError(f"--calib {e}") from None
-        quantize_detector(onnx_in, out, frames, image_size=args.size, exclude=() if args.all_layers else DEFAULT_EXCLUDE,
+        keep_float = () if args.all_layers else tuple(args.keep_float or DEFAULT_EXCLUDE)
+        quantize_detector(onnx_in, out, frames, image_size=args.size, exclude=keep_float,
                           per_channel=not args.per_tensor, method=args.method)
     except (ValueError, FileNotFoundError) as e:
         print(f"chaser-bt: {e}", file=sys.stderr)
@@ -261,6 +277,10 @@ def add_command(subparsers) -> None:
     r.add_argument("--steps", type=positive_int, default=4000, metavar="N", help="optimiser steps (default 4000)")
     r.add_argument("--seed", type=seed, default=0, metavar="N", help="seed of the crops and initial weights (default 0)")
     r.add_argument("--threads", type=positive_int, default=2, metavar="N", help="torch threads (default 2)")
+    r.add_argument("--negatives-from", default=None, metavar="FILE.pt",
+                   help="detector weights: train a scoring refiner, its negatives this detector's false boxes on --data")
+    r.add_argument("--negative-conf", type=probability, default=0.05, metavar="P",
+                   help="lowest score of the false boxes mined with --negatives-from (default 0.05)")
     r.set_defaults(handler=_train_refiner)
     help_ = "11-point AP@0.5, IoU, P/R/F1 at 0.25 and frames/s of the detector on a YOLO folder"
     e = subparsers.add_parser("eval-detector", help=help_, description=help_)
@@ -290,7 +310,9 @@ def add_command(subparsers) -> None:
                    help="activation range calibration: percentile = the 99.999th of the calibration frames (default percentile)")
     q.add_argument("--per-tensor", action="store_true", help="one weight scale per layer instead of per output channel (default: per channel)")
     q.add_argument("--all-layers", action="store_true",
-                   help="quantize the first conv and the head too (default: both stay float)")
+                   help="quantize the stem and the head too (default: both stay float)")
+    q.add_argument("--keep-float", nargs="+", metavar="PREFIX",
+                   help="node-name prefixes of the layers left float (default: /stem/ /head/)")
     q.set_defaults(handler=_quantize)
     help_ = ("import a CVAT export (YOLO 1.1 or COCO 1.0, zip or folder) of your footage into train/ and val/ "
              "YOLO folders, split by contiguous chunks")

@@ -310,8 +310,20 @@ def test_quantize_detector_command_writes_the_int8_copy_that_auto_then_runs(tmp_
     assert f"int8 copy written to {q} (calibrated on 4 frames)" in capsys.readouterr().out
     det = Detector(w)
     assert det.backend == "onnx-int8" and det.onnx_path == q
+    assert _float_convs(q) == {"/stem/stem.0/stem.0.0/Conv", "/stem/stem.1/stem.1.0/Conv", "/head/Conv"}
+    assert main(["quantize-detector", "--weights", str(w), "--calib", str(calib), "--frames", "4", "--keep-float", "/head/"]) == 0
+    assert _float_convs(q) == {"/head/Conv"}
     assert main(["quantize-detector", "--weights", str(tmp_path / "none.pt"), "--calib", str(calib)]) == 2
     assert "--weights" in capsys.readouterr().err
+
+
+def _float_convs(path) -> set[str]:
+    """Names of the convolutions in an ONNX file whose weights are not an int8 tensor put through DequantizeLinear."""
+    import onnx
+
+    graph = onnx.load(str(path)).graph
+    dequantized = {n.output[0] for n in graph.node if n.op_type == "DequantizeLinear"}
+    return {n.name for n in graph.node if n.op_type == "Conv" and n.input[1] not in dequantized}
 
 
 def test_the_head_decoded_in_numpy_is_the_torch_decode_of_the_cells_kept():

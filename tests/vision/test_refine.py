@@ -13,7 +13,9 @@ from chaser_bt.vision.detector.refine import (
     RefinerConfig,
     _crops,
     crop_window,
+    false_detections,
     jitter_boxes,
+    make_negative_set,
     make_refiner_set,
     refiner_path,
     train_refiner,
@@ -94,6 +96,103 @@ def test_a_refiner_trained_on_squares_places_jittered_boxes_better_than_it_got_t
         before.append(iou_matrix(jittered, lab[:, 1:])[0, 0])
         after.append(iou_matrix(refiner.boxes(img, jittered), lab[:, 1:])[0, 0])
     assert np.mean(after) > np.mean(before) + 0.07, (np.mean(before), np.mean(after))  # measured 0.61 -> 0.73
+
+
+def test_false_detections_are_the_boxes_that_overlap_no_label():
+    labels = [np.array([[0, 10, 10, 30, 30]], float), np.zeros((0, 5))]
+    found = {0: [(12, 10, 32, 30), (20, 20, 40, 40), (60, 60, 80, 80)], 1: [(5, 5, 9, 9)]}
+    frames = [np.full((4, 4, 3), k, np.uint8) for k in range(2)]  # the frame's value says which it is
+
+    def detect(frame):
+        return [Detection(b, 0.5, 0, "person") for b in found[int(frame[0, 0, 0])]]
+
+    # IoU with the label: 360/440 = 0.82 (a true box), 100/700 = 0.14 (false at max_iou 0.3), 0 (false).
+    out = false_detections(detect, frames, labels, max_iou=0.3)
+    assert out[0].tolist() == [[20, 20, 40, 40], [60, 60, 80, 80]] and out[1].tolist() == [[5, 5, 9, 9]]
+    assert false_detections(detect, frames, labels, max_iou=0.1)[0].tolist() == [[60, 60, 80, 80]]
+
+
+def test_negative_crops_are_cut_around_the_false_boxes_as_the_refiner_cuts_them():
+    cfg = RefinerConfig(input_px=32, context=2.0, min_side_px=8.0)
+    img = np.zeros((100, 100, 3), np.uint8)
+    img[40:60, 40:60] = 255
+    crops, given = make_negative_set([img, img], [np.array([[40.0, 40.0, 60.0, 60.0]]), np.zeros((0, 4))], cfg)
+    assert crops.shape == (1, 32, 32, 3) and given.dtype == np.float32
+    assert given[0] == pytest.approx([0.25, 0.25, 0.75, 0.75])  # window 30-70: side 2 x 20 around the centre
+    assert crops[0, 16, 16].min() == 255 and crops[0, 2, 2].max() == 0
+    empty, none = make_negative_set([img], [np.zeros((0, 4))], cfg)
+    assert empty.shape == (0, 32, 32, 3) and none.shape == (0, 4)
+
+
+def _rings(n: int, rng: np.random.Generator) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Dark rings (false: no bright centre) of 10-30 px on noise, one a frame, and their boxes."""
+    images, boxes = [], []
+    for _ in range(n):
+        img = (rng.random((96, 96, 3)) * 80 + 120).astype(np.uint8)
+        s = int(rng.integers(10, 31))
+        x, y = (int(v) for v in rng.integers(15, 96 - 15 - s, 2))
+        img[y:y + s, x:x + s] = 30
+        img[y + s // 4:y + 3 * s // 4, x + s // 4:x + 3 * s // 4] = 150
+        images.append(img)
+        boxes.append(np.array([[x, y, x + s, y + s]], float))
+    return images, boxes
+
+
+def test_a_scoring_refiner_learns_to_tell_the_target_from_a_look_alike_and_the_detector_drops_what_it_rejects(tmp_path):
+    """Targets: dark squares with a bright centre; look-alikes: the same squares with a grey one. After
+    training on both, held-out targets score over 0.5 and look-alikes under it, and a detection's score
+    becomes the detector's times the refiner's."""
+    torch.set_num_threads(1)
+    cfg = RefinerConfig(input_px=32, widths=(8, 16, 16), scores=True)
+    rng = np.random.default_rng(0)
+    crops, given, targets = make_refiner_set(*_squares(300, rng), cfg, 2, rng)
+    negatives = make_negative_set(*_rings(300, rng), cfg)
+    with pytest.raises(ValueError, match="negative"):
+        train_refiner(crops, given, targets, tmp_path / "x.pt", cfg, steps=1, progress=None)
+    train_refiner(crops, given, targets, tmp_path / "sc.pt", cfg, steps=300, batch=64, lr=3e-3, progress=None, negatives=negatives)
+    refiner = BoxRefiner(tmp_path / "sc.pt", backend="torch")
+    test_rng = np.random.default_rng(7)
+    images, labels = _squares(40, test_rng)
+    look_alikes, boxes = _rings(40, test_rng)
+    p_target = np.array([refiner.refine(img, lab[:, 1:])[1][0] for img, lab in zip(images, labels)])
+    p_false = np.array([refiner.refine(img, b)[1][0] for img, b in zip(look_alikes, boxes)])
+    assert (p_target > 0.5).mean() >= 0.9 and (p_false < 0.5).mean() >= 0.9, (p_target, p_false)
+    det = refiner(images[0], [Detection(tuple(labels[0][0, 1:]), 0.64, 0, "person")])[0]
+    assert det.score == pytest.approx(0.64 * p_target[0], rel=1e-5)
+    assert refiner.refine(images[0], [])[1].shape == (0,)
+
+    from chaser_bt.vision.detector.refine import export_refiner_onnx
+
+    pytest.importorskip("onnxruntime")
+    export_refiner_onnx(tmp_path / "sc.pt")
+    onnx = BoxRefiner(tmp_path / "sc.pt", backend="onnx")
+    assert onnx.config.scores and onnx.refine(look_alikes[0], boxes[0])[1] == pytest.approx(p_false[:1], abs=1e-4)
+
+
+def test_the_detector_keeps_only_what_clears_its_threshold_after_a_scoring_refiner(tmp_path):
+    """A scoring refiner whose head says "no target" everywhere (probability 0.018) leaves nothing over 0.25
+    of what the detector found; one that says "a target" (0.982) keeps each box whose score times 0.982
+    still clears 0.25, re-scored."""
+    from chaser_bt.vision.detector.inference import Detector
+    from sitl.bench.camera_dataset import DatasetRenderer, frame_boxes
+
+    rng = np.random.default_rng(3)
+    data = DatasetRenderer("train", ground_size_px=1024)
+    frame = next(f.image for f in iter(lambda: data.sample(rng), None) if len(frame_boxes(f)))
+    plain = Detector(refiner=None)(frame)
+    assert plain, "the shipped detector finds the rendered target"
+    for logit in (-4.0, 4.0):
+        net = BoxRefinerNet(RefinerConfig(scores=True))
+        torch.nn.init.zeros_(net.head[-1].weight)
+        with torch.no_grad():
+            net.head[-1].bias.copy_(torch.tensor([0.0, 0.0, 0.0, 0.0, logit]))
+        _save(net, tmp_path / "r.pt")
+        p = 1 / (1 + np.exp(-logit))
+        want = sorted(d.score * p for d in plain if d.score * p >= 0.25)
+        rescored = Detector(refiner=tmp_path / "r.pt")(frame)
+        assert sorted(d.score for d in rescored) == pytest.approx(want, rel=1e-4)
+        assert [d.score for d in rescored] == sorted((d.score for d in rescored), reverse=True)
+    assert want, "the boxes the shipped detector is sure of survive a refiner that agrees"
 
 
 def test_the_shipped_refiner_improves_the_shipped_detectors_boxes_on_a_fresh_heldout_set():

@@ -132,9 +132,9 @@ class Detector:
         iou_threshold: NMS overlap.
         threads: torch (process-wide) or onnxruntime intra-op threads.
         multi_label: report every class above the threshold for a box, not just the best (for AP).
-        refiner: the second stage re-placing each box from a full-resolution crop
-            (:class:`chaser_bt.vision.detector.refine.BoxRefiner`): "auto" = the one shipped beside ``weights``
-            when there is one, a path, or None for none.
+        refiner: the second stage re-placing each box from a full-resolution crop, and re-scoring it when
+            it was trained to (:class:`chaser_bt.vision.detector.refine.BoxRefiner`): "auto" = the one shipped
+            beside ``weights`` when there is one, a path, or None for none.
         backend: "torch"; "onnx" to run ``onnx_path`` with onnxruntime (optional dependency, measured
             faster on this CPU); "onnx-int8" to run the int8 copy (``onnx_path``, default
             :func:`int8_path` of ``weights``; faster again on a CPU with VNNI); "auto" = onnx-int8 when
@@ -242,7 +242,12 @@ class Detector:
             b = (boxes[i] - np.array([px, py, px, py])) / scale
             b = np.clip(b, [0, 0, 0, 0], [w, h, w, h])
             dets.append(Detection((float(b[0]), float(b[1]), float(b[2]), float(b[3])), float(score[i]), int(cls[i]), self.class_names[int(cls[i])]))
-        return dets if self.refiner is None else self.refiner(frame_bgr, dets)
+        if self.refiner is None:
+            return dets
+        dets = self.refiner(frame_bgr, dets)
+        if self.refiner.config.scores:  # re-scored (never upwards): the threshold holds for the new scores
+            dets = sorted((d for d in dets if d.score >= self.conf_threshold), key=lambda d: -d.score)
+        return dets
 
 
 def shipped_detector(name: str, **kwargs) -> Detector:
