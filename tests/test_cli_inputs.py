@@ -75,6 +75,8 @@ BAD_INPUTS = [
     (["train-detector", "--data", "{tmp}/nothing"], "--data"),
     (["train-detector", "--data", "{yolo}", "--out", NO_DIR + "/d.pt"], "--out"),
     (["train-refiner", "--data", "{yolo}", "--out", "r.pt", "--steps", "0"], "--steps"),
+    (["train-refiner", "--data", "{yolo}", "--out", "r.pt", "--negatives-from", str(ROOT / "README.md")], "--negatives-from"),
+    (["train-refiner", "--data", "{yolo}", "--out", "r.pt", "--negative-conf", "1.5"], "--negative-conf"),
     (["eval-detector", "--data", "{yolo}", "--weights", str(ROOT / "README.md")], "--weights"),
     (["eval-detector", "--data", "{yolo}", "--sizes", "100"], "--sizes"),
     (["quantize-detector", "--calib", "{tmp}/nothing"], "--calib"),

@@ -129,7 +129,7 @@ def _train_refiner(args: argparse.Namespace) -> int:
         if args.negatives_from is not None:
             from chaser_bt.vision.detector.inference import Detector
 
-            _check_weights(args.negatives_from)
+            _check_weights(args.negatives_from, "--negatives-from")
             detect = Detector(args.negatives_from, conf_threshold=args.negative_conf, threads=args.threads, refiner=None)
         for folder in args.data:
             if not (Path(folder) / "images").is_dir():
@@ -226,19 +226,19 @@ def _import_footage(args: argparse.Namespace) -> int:
     return 0
 
 
-def _check_weights(path: str | Path) -> None:
-    """Raises ValueError unless ``path`` loads as detector weights (a file ``train-detector`` wrote)."""
+def _check_weights(path: str | Path, flag: str = "--weights") -> None:
+    """Raises ValueError, naming ``flag``, unless ``path`` loads as detector weights (a file ``train-detector`` wrote)."""
     import pickle
     import zipfile
 
     from chaser_bt.vision.detector.inference import load_model
 
     if not Path(path).is_file():
-        raise ValueError(f"--weights {path}: no such file")
+        raise ValueError(f"{flag} {path}: no such file")
     try:
         load_model(path)
     except (pickle.UnpicklingError, zipfile.BadZipFile, EOFError, KeyError, TypeError, RuntimeError, AttributeError) as exc:
-        raise ValueError(f"--weights {path}: not detector weights (expected a .pt file train-detector wrote; {type(exc).__name__})") from None
+        raise ValueError(f"{flag} {path}: not detector weights (expected a .pt file train-detector wrote; {type(exc).__name__})") from None
 
 
 def add_command(subparsers) -> None:

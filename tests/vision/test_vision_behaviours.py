@@ -138,6 +138,28 @@ def test_train_refiner_writes_a_refiner_the_detector_can_load(tmp_path, capsys):
     assert det.refiner.boxes(img, [(100.0, 100.0, 140.0, 120.0)]).shape == (1, 4)
 
 
+def test_train_refiner_with_negatives_from_a_detector_writes_a_scoring_refiner(tmp_path, capsys):
+    from chaser_bt.vision.commands import add_command
+    from chaser_bt.vision.detector.inference import DEFAULT_WEIGHTS, Detector
+    from sitl.bench.camera_dataset import write_dataset
+
+    write_dataset(tmp_path / "d", 3, seed=4, split="train", ground_size_px=256)
+    parser = argparse.ArgumentParser()
+    add_command(parser.add_subparsers())
+    out = tmp_path / "r.pt"
+    args = parser.parse_args(["train-refiner", "--data", str(tmp_path / "d"), "--out", str(out), "--steps", "3", "--threads", "1",
+                              "--negatives-from", str(DEFAULT_WEIGHTS), "--negative-conf", "0.001"])
+    assert args.handler(args) == 0
+    assert "of false boxes" in capsys.readouterr().err
+    det = Detector(refiner=out)
+    assert det.refiner.config.scores and det.refiner.backend == "onnx"
+    box, prob = det.refiner.refine(np.full((480, 640, 3), 120, np.uint8), [(100.0, 100.0, 140.0, 120.0)])
+    assert box.shape == (1, 4) and 0.0 < prob[0] < 1.0
+    args = parser.parse_args(["train-refiner", "--data", str(tmp_path / "d"), "--out", str(out),
+                              "--negatives-from", str(tmp_path / "none.pt")])
+    assert args.handler(args) == 2 and "--negatives-from" in capsys.readouterr().err
+
+
 def test_eval_detector_prints_model_card_metrics_on_a_rendered_folder(tmp_path, capsys):
     from chaser_bt.vision.commands import add_command
     from sitl.bench.camera_dataset import write_dataset
