@@ -66,15 +66,16 @@ def test_jittered_boxes_scatter_around_the_label_as_asked():
     assert np.std(np.log((b[:, 3] - b[:, 1]) / 20.0)) == pytest.approx(0.2, rel=0.05)
 
 
-def _squares(n: int, rng: np.random.Generator) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """Dark squares (10-30 px) with a bright centre on noise: the label is the square."""
+def _squares(n: int, rng: np.random.Generator, centre: int = 230) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Dark squares (10-30 px) on noise, one a frame, with a centre of value ``centre`` (the bright-centred
+    ones are the targets); labels (1, 5) class, x0, y0, x1, y1."""
     images, boxes = [], []
     for _ in range(n):
         img = (rng.random((96, 96, 3)) * 80 + 120).astype(np.uint8)
         s = int(rng.integers(10, 31))
         x, y = (int(v) for v in rng.integers(15, 96 - 15 - s, 2))
         img[y:y + s, x:x + s] = 30
-        img[y + s // 3:y + 2 * s // 3, x + s // 3:x + 2 * s // 3] = 230
+        img[y + s // 3:y + 2 * s // 3, x + s // 3:x + 2 * s // 3] = centre
         images.append(img)
         boxes.append(np.array([[0, x, y, x + s, y + s]], float))
     return images, boxes
@@ -124,18 +125,10 @@ def test_negative_crops_are_cut_around_the_false_boxes_as_the_refiner_cuts_them(
     assert empty.shape == (0, 32, 32, 3) and none.shape == (0, 4)
 
 
-def _rings(n: int, rng: np.random.Generator) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """Dark rings (false: no bright centre) of 10-30 px on noise, one a frame, and their boxes."""
-    images, boxes = [], []
-    for _ in range(n):
-        img = (rng.random((96, 96, 3)) * 80 + 120).astype(np.uint8)
-        s = int(rng.integers(10, 31))
-        x, y = (int(v) for v in rng.integers(15, 96 - 15 - s, 2))
-        img[y:y + s, x:x + s] = 30
-        img[y + s // 4:y + 3 * s // 4, x + s // 4:x + 3 * s // 4] = 150
-        images.append(img)
-        boxes.append(np.array([[x, y, x + s, y + s]], float))
-    return images, boxes
+def _look_alikes(n: int, rng: np.random.Generator) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """The squares with a grey centre (not targets) and their (1, 4) boxes."""
+    images, labels = _squares(n, rng, centre=150)
+    return images, [lab[:, 1:] for lab in labels]
 
 
 def test_a_scoring_refiner_learns_to_tell_the_target_from_a_look_alike_and_the_detector_drops_what_it_rejects(tmp_path):
@@ -146,14 +139,14 @@ def test_a_scoring_refiner_learns_to_tell_the_target_from_a_look_alike_and_the_d
     cfg = RefinerConfig(input_px=32, widths=(8, 16, 16), scores=True)
     rng = np.random.default_rng(0)
     crops, given, targets = make_refiner_set(*_squares(300, rng), cfg, 2, rng)
-    negatives = make_negative_set(*_rings(300, rng), cfg)
+    negatives = make_negative_set(*_look_alikes(300, rng), cfg)
     with pytest.raises(ValueError, match="negative"):
         train_refiner(crops, given, targets, tmp_path / "x.pt", cfg, steps=1, progress=None)
     train_refiner(crops, given, targets, tmp_path / "sc.pt", cfg, steps=300, batch=64, lr=3e-3, progress=None, negatives=negatives)
     refiner = BoxRefiner(tmp_path / "sc.pt", backend="torch")
     test_rng = np.random.default_rng(7)
     images, labels = _squares(40, test_rng)
-    look_alikes, boxes = _rings(40, test_rng)
+    look_alikes, boxes = _look_alikes(40, test_rng)
     p_target = np.array([refiner.refine(img, lab[:, 1:])[1][0] for img, lab in zip(images, labels)])
     p_false = np.array([refiner.refine(img, b)[1][0] for img, b in zip(look_alikes, boxes)])
     assert (p_target > 0.5).mean() >= 0.9 and (p_false < 0.5).mean() >= 0.9, (p_target, p_false)
