@@ -9,9 +9,10 @@ QuantizeLinear/DequantizeLinear pairs around each Conv into an integer convoluti
 the model. Activation ranges are the 99.999th percentile of what the calibration frames produce
 (min-max and entropy were measured too). The stem (the two stride-2 convolutions that read the RGB
 input) and the head (the raw logits that decode reads as box sizes and scores) stay float by default:
-the stem's second convolution kept float cost 4 % of the int8 copy's speed and won back the drone
-detector's held-out AP (docs/vision.md has the figures with and without each). Calibration frames must come from training data only (here: the plain field and
-the training camera-world families), never from the held-out sets the result is scored on.
+keeping the stem's second convolution float too cost 8 % of the int8 copy's speed and won back the
+drone detector's held-out AP (docs/vision.md has the figures with and without each). Calibration
+frames must come from training data only (here: the plain field and the training camera-world
+families), never from the held-out sets the result is scored on.
 
 Nothing here is hand-written quantization: the calibration reader only feeds frames.
 """
