@@ -68,7 +68,8 @@ def train_refiner(crops: np.ndarray, given: np.ndarray, targets: np.ndarray, out
     n_pos = len(crops)
     if scores:
         crops, given = np.concatenate([crops, negatives[0]]), np.concatenate([given, negatives[1]])
-        targets = np.concatenate([targets, negatives[1]])  # placeholders: a negative's box is not learnt
+        # Negatives' rows only keep the arrays aligned: their boxes never enter the box loss (a batch's first half does).
+        targets = np.concatenate([targets, negatives[1]])
     x_all = _to_tensor(crops)
     g_all = torch.from_numpy(given)
     y_all = torch.from_numpy(targets)
