@@ -75,6 +75,23 @@ class Projector:
             v = np.where(front, 0.5 * self.camera.height_px + fy * c[:, 1] / c[:, 2], np.nan)
         return np.stack([u, v], axis=1), front
 
+    def angle_outside_rad(self, point_enu: np.ndarray, vehicle_pos_enu: np.ndarray, body_attitude: Rotation) -> float:
+        """A lower bound on the angle between the ray to ``point_enu`` and any ray through the image
+        (0 inside it): the largest angle by which the ray lies outside one of the four planes through
+        the camera and an image edge (the view is inside each of them, so it is at least that far)."""
+        q = self.camera_quaternion(body_attitude)
+        rel = np.asarray(point_enu, float).reshape(3) - self.camera.position_enu(vehicle_pos_enu, body_attitude)
+        c = quat_rotate(quat_conjugate(q), rel[None])[0]
+        n = float(np.linalg.norm(c))
+        if n <= 0.0:
+            return 0.0
+        fx, fy = self.camera.focal_px
+        th, tv = 0.5 * self.camera.width_px / fx, 0.5 * self.camera.height_px / fy
+        inward = np.array([[-1.0, 0.0, th], [1.0, 0.0, th], [0.0, -1.0, tv], [0.0, 1.0, tv]])
+        inward /= np.linalg.norm(inward, axis=1, keepdims=True)
+        outside = float(np.max(-(inward @ c) / n))
+        return math.asin(min(outside, 1.0)) if outside > 0.0 else 0.0
+
     def point_enu(self, pixels: np.ndarray, range_m: np.ndarray, vehicle_pos_enu: np.ndarray, body_attitude: Rotation) -> np.ndarray:
         """ENU points at ``range_m`` from the camera along the rays through ``pixels``."""
         cam = self.camera.position_enu(vehicle_pos_enu, body_attitude)

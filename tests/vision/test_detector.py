@@ -371,3 +371,22 @@ def test_network_input_is_the_image_as_rgb_planes_in_zero_to_one():
     assert got.dtype == np.float32 and got.shape == (1, 3, 64, 96) and got.flags.c_contiguous
     assert np.array_equal(got, want)
     assert got[0, 0, 3, 7] == np.float32(img[3, 7, 2]) / np.float32(255.0)  # plane 0 is red (BGR's last)
+
+
+def test_a_square_window_the_network_can_take_runs_at_its_own_size_and_anything_else_is_letterboxed():
+    """A focus window (square, a multiple of the stride, no larger than the input) goes to the network
+    as it is, boxes in its own pixels; other images are letterboxed to the detector's size."""
+    det = Detector(backend="onnx", refiner=None)
+    seen = []
+    session = det._session
+
+    class Recording:
+        def run(self, names, feeds):
+            seen.append(feeds["images"].shape[2:])
+            return session.run(names, feeds)
+
+    det._session = Recording()
+    rng = np.random.default_rng(0)
+    for shape in ((320, 320, 3), (256, 256, 3), (416, 416, 3), (300, 300, 3), (480, 640, 3), (448, 448, 3)):
+        det(rng.integers(0, 256, shape, dtype=np.uint8))
+    assert seen == [(320, 320), (256, 256), (416, 416), (416, 416), (416, 416), (416, 416)]

@@ -87,7 +87,7 @@ def test_the_pipeline_looks_at_its_track_through_a_zoomed_window():
     ests = [pipe.process(_frame(k), POSE) for k in range(4)]
     # Frames 0 and 1 see the whole frame (nothing followed yet; the track confirms at frame 1),
     # frame 2 the zoomed window on the track, frame 3 the whole frame again (every 3rd).
-    assert det.shapes == [(480, 640, 3), (480, 640, 3), (416, 416, 3), (480, 640, 3)]
+    assert det.shapes == [(480, 640, 3), (480, 640, 3), (320, 320, 3), (480, 640, 3)]
     assert pipe.focused_frames == 1
     truth = Projector(CAM).bearing_enu(np.array([[403.0, 203.0]]), Rotation.identity())[0]
     for est in ests[1:]:
@@ -112,13 +112,30 @@ def test_before_a_track_the_window_is_on_the_cue_sized_by_its_range():
     ests = [pipe.process(_frame(k), POSE, cue=cue) for k in range(4)]
     # With a cue every detector frame looks through the window (the gate would refuse what the
     # whole frame found outside it): first on the cue, then on the track.
-    assert det.shapes == [(416, 416, 3)] * 4 and pipe.focused_frames == 4
+    assert det.shapes == [(320, 320, 3)] * 4 and pipe.focused_frames == 4
     assert all(e is not None for e in ests)  # one hit the cue agrees with is enough: no second hit needed
-    # A cue behind the camera gives no window: the whole frame.
-    behind = TargetCue(t=0.0, position_enu=np.array([-50.0, 0.0, 30.0]), covariance_enu=np.eye(3), source="telemetry")
-    det2 = _BlobDetector()
-    VisionPipeline(CAM, det2, PipelineConfig(detect_every=1, tracker_kinds=())).process(_frame(0), POSE, cue=behind)
-    assert det2.shapes == [(480, 640, 3)]
+    # A cue behind the camera: nothing in view could pass its gate, so the detector does not run; so
+    # uncertain that its gate reaches into the view (4 deg + atan(3 * 200 / 50) = 89 deg, the view's
+    # nearest edge plane 47.5 deg away): no window, the whole frame.
+    for sigma_m, shapes in ((1.0, []), (200.0, [(480, 640, 3)])):
+        behind = TargetCue(t=0.0, position_enu=np.array([-50.0, 0.0, 30.0]), covariance_enu=sigma_m**2 * np.eye(3), source="telemetry")
+        det2 = _BlobDetector()
+        est = VisionPipeline(CAM, det2, PipelineConfig(detect_every=1, tracker_kinds=())).process(_frame(0), POSE, cue=behind)
+        assert det2.shapes == shapes and est is None
+
+
+def test_a_cue_just_off_the_image_is_looked_for_at_its_edge_and_one_far_off_not_at_all():
+    # The square sits against the top edge; the cue is 20 px above the image on its column, 140 m out
+    # (2 deg outside the top edge's plane, inside the 4 deg gate): the window is pushed down into the image.
+    det = _BlobDetector()
+    pipe = VisionPipeline(CAM, det, PipelineConfig(detect_every=1, tracker_kinds=()))
+    est = pipe.process(_frame(0, square=(400, 0, 6)), POSE, cue=_cue_at((403.0, -20.0), 140.0))
+    assert det.shapes == [(320, 320, 3)] and pipe.focused_frames == 1 and est is not None
+    # 200 px above the image (17 deg outside it): beyond the gate, the detector is not run.
+    det = _BlobDetector()
+    pipe = VisionPipeline(CAM, det, PipelineConfig(detect_every=1, tracker_kinds=()))
+    assert pipe.process(_frame(0, square=(400, 0, 6)), POSE, cue=_cue_at((403.0, -200.0), 140.0)) is None
+    assert det.shapes == []
 
 
 def test_without_a_cue_a_track_needs_confirm_hits_but_with_one_a_single_hit_in_its_gate():

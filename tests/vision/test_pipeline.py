@@ -199,15 +199,15 @@ def test_the_plan_asks_for_the_focus_window_then_the_tracks_neighbourhood():
 
     cam = CameraModel(width_px=640, height_px=480, tilt_rad=0.0)
     # The detector sees the 2x focus window; its box (crop pixels) maps back to (300, 230, 316, 246) in the frame.
-    script = _Script([[((168.0, 188.0, 200.0, 220.0), 0.9)]])
+    script = _Script([[((120.0, 140.0, 152.0, 172.0), 0.9)]])
     pipe = VisionPipeline(cam, script, PipelineConfig(detect_every=2, tracker_kinds=()))
     source = _RegionSource()
     sensor = CameraSensor(source, pipe)
     pose = lambda t: OwnshipPose(t, np.array([0.0, 0.0, 10.0]), np.zeros(3), Rotation.identity())
     cue = TargetCue(0.0, np.array([100.0, 0.0, 10.0]), 4.0 * np.eye(3))  # dead ahead, 100 m: a few pixels wide
     est = sensor.step(0.0, pose(0.0), cue=cue)
-    # Detector frame: the window at zoom 2 (416 / 2 = 208 px) centred on the cue's pixel (320, 240).
-    assert source.asked[0] == ((216, 136, 424, 344),)
+    # Detector frame: the window at zoom 2 (320 / 2 = 160 px) centred on the cue's pixel (320, 240).
+    assert source.asked[0] == ((240, 160, 400, 320),)
     assert est is not None and pipe.track.box == pytest.approx((300.0, 230.0, 316.0, 246.0))
     sensor.step(0.1, pose(0.1), cue=cue)
     # Tracker frame: only the track's neighbourhood, its box and 64 px around it.

@@ -84,3 +84,27 @@ def test_smoother_reduces_attitude_noise():
             raw.append((meas * truth.inv()).magnitude())
             smooth.append((out * truth.inv()).magnitude())
     assert np.mean(smooth) < 0.7 * np.mean(raw)
+
+
+@settings(max_examples=60, deadline=None)
+@given(angles, small, small, st.floats(-math.pi, math.pi), st.floats(-1.4, 1.4), st.floats(5, 300))
+def test_angle_outside_the_image_is_zero_inside_and_never_more_than_the_angle_to_any_pixel(yaw, pitch, roll, az, el, dist):
+    """Hand case: level camera yawed to north, a point at azimuth a east of north in the horizontal plane
+    lies a - 47.5 deg outside the right edge's plane; property: the bound is at most the angle to the
+    nearest of a dense grid of pixels (brute force), and 0 for points seen."""
+    cam = CameraModel(width_px=640, height_px=480, tilt_rad=0.0)
+    proj, north = Projector(cam), Rotation.from_euler("z", math.pi / 2)
+    for a_deg, want in ((10.0, 0.0), (47.5, 0.0), (60.0, 12.5), (90.0, 42.5)):
+        a = math.radians(a_deg)
+        p = cam.position_enu(np.zeros(3), north) + 50.0 * np.array([math.sin(a), math.cos(a), 0.0])
+        assert math.isclose(math.degrees(proj.angle_outside_rad(p, np.zeros(3), north)), want, abs_tol=1e-9)
+    att = Rotation.from_euler("ZYX", [yaw, pitch, roll])
+    ray = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+    point = CAM.position_enu(np.zeros(3), att) + dist * ray
+    bound = Projector(CAM).angle_outside_rad(point, np.zeros(3), att)
+    grid = np.stack(np.meshgrid(np.linspace(0, 640, 65), np.linspace(0, 480, 49)), -1).reshape(-1, 2)
+    nearest = math.acos(min(1.0, float(np.max(Projector(CAM).bearing_enu(grid, att) @ ray))))
+    assert bound <= nearest + 1e-9
+    px, front = Projector(CAM).pixel_of(point[None], np.zeros(3), att)
+    if front[0] and 0 <= px[0, 0] <= 640 and 0 <= px[0, 1] <= 480:
+        assert bound == 0.0

@@ -209,7 +209,8 @@ class Detector:
         return load_model(self.weights)
 
     def __call__(self, frame_bgr: np.ndarray) -> list[Detection]:
-        if frame_bgr.shape[:2] == (self.image_size, self.image_size):  # a focus window: already the input's size
+        h, w = frame_bgr.shape[:2]
+        if h == w <= self.image_size and h % self.stride == 0:  # a focus window: a size the network takes as it is
             img, scale, (px, py) = frame_bgr, 1.0, (0, 0)
         else:
             img, scale, (px, py) = letterbox(frame_bgr, self.image_size)
@@ -236,7 +237,6 @@ class Detector:
         boxes, score, cls = boxes[m], score[m], cls[m]
         offset = cls[:, None] * 1e5 if self.multi_label else 0.0  # per-class NMS by shifting classes apart
         keep = nms(boxes + offset, score, self.iou_threshold)[: self.max_detections]
-        h, w = frame_bgr.shape[:2]
         dets = []
         for i in keep:
             b = (boxes[i] - np.array([px, py, px, py])) / scale
