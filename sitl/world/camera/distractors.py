@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Sequence
 
 import cv2
 import numpy as np
 
-__all__ = ["Bird", "Aircraft", "LensSpecks", "make_birds", "make_aircraft"]
+__all__ = ["Bird", "Birds", "Aircraft", "LensSpecks", "make_birds", "make_aircraft"]
 
 Projector = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]  # ENU (N, 3) -> pixels (N, 2), depth (N,)
 
@@ -33,23 +33,57 @@ class Bird:
     colour: tuple[int, int, int]
 
     def position(self, t: float) -> np.ndarray:
-        a = self.phase + self.speed_mps * t / max(self.radius_m, 1.0)
-        c = self.centre_enu
-        return np.array([c[0] + self.radius_m * math.cos(a), c[1] + self.radius_m * math.sin(a),
-                         c[2] + 2.0 * math.sin(0.3 * a)])
+        """Where the body is at time ``t`` (ENU)."""
+        return Birds((self,)).positions(t)[0]
 
     def draw(self, img: np.ndarray, project: Projector, focal_px: float, t: float) -> None:
-        a = self.phase + self.speed_mps * t / max(self.radius_m, 1.0)
-        body = self.position(t)
-        side = np.array([math.cos(a), math.sin(a), 0.0])  # along the radius: across the flight direction
-        flap = 0.7 * math.sin(2.0 * math.pi * self.flap_hz * t + 7.0 * self.phase)
-        half = 0.5 * self.span_m
-        tips = [body + half * (s * math.cos(flap) * side + np.array([0.0, 0.0, math.sin(flap)])) for s in (-1.0, 1.0)]
-        px, z = project(np.array([tips[0], body, tips[1]]))
-        if (z <= 1.0).any() or not np.isfinite(px).all() or np.abs(px).max() > 1e5:
+        Birds((self,)).draw(img, project, focal_px, t)
+
+
+class Birds:
+    """Many birds placed and drawn at once: their paths as arrays, one projection for all of them."""
+
+    def __init__(self, birds: Sequence[Bird]) -> None:
+        self.birds = tuple(birds)
+        self.centre = np.array([b.centre_enu for b in self.birds], float).reshape(-1, 3)
+        self.radius = np.array([b.radius_m for b in self.birds], float)
+        self.speed = np.array([b.speed_mps for b in self.birds], float)
+        self.phase = np.array([b.phase for b in self.birds], float)
+        self.half_span = np.array([0.5 * b.span_m for b in self.birds], float)
+        self.flap_hz = np.array([b.flap_hz for b in self.birds], float)
+
+    def __len__(self) -> int:
+        return len(self.birds)
+
+    def _angles(self, t: float) -> np.ndarray:
+        return self.phase + self.speed * t / np.maximum(self.radius, 1.0)
+
+    def positions(self, t: float) -> np.ndarray:
+        """(N, 3) ENU bodies at time ``t``: each circles its centre, bobbing 2 m."""
+        a = self._angles(t)
+        return self.centre + np.column_stack([self.radius * np.cos(a), self.radius * np.sin(a), 2.0 * np.sin(0.3 * a)])
+
+    def draw(self, img: np.ndarray, project: Projector, focal_px: float, t: float, which: Sequence[int] | None = None) -> None:
+        """Draw the birds ``which`` (all: None) in order: a polyline wing tip - body - wing tip, the wings
+        flapping up and down about the direction across the flight."""
+        k = np.arange(len(self)) if which is None else np.asarray(which, int)
+        if not len(k):
             return
-        width = max(int(round(0.12 * self.span_m * focal_px / z[1])), 1)
-        cv2.polylines(img, [np.round(px * 16).astype(np.int32)], False, self.colour, width, cv2.LINE_AA, 4)
+        a = self._angles(t)[k]
+        body = self.positions(t)[k]
+        side = np.column_stack([np.cos(a), np.sin(a), np.zeros(len(k))])  # along the radius: across the flight
+        flap = 0.7 * np.sin(2.0 * np.pi * self.flap_hz[k] * t + 7.0 * self.phase[k])
+        across = (self.half_span[k] * np.cos(flap))[:, None] * side
+        lift = np.column_stack([np.zeros((len(k), 2)), self.half_span[k] * np.sin(flap)])  # both wings up, then down
+        pts = np.stack([body - across + lift, body, body + across + lift], axis=1)  # (n, 3 points, 3)
+        px, z = project(pts.reshape(-1, 3))
+        px, z = px.reshape(-1, 3, 2), z.reshape(-1, 3)
+        ok = (z > 1.0).all(axis=1) & np.isfinite(px).all(axis=(1, 2))
+        ok[ok] &= np.abs(px[ok]).max(axis=(1, 2)) <= 1e5
+        for i in np.flatnonzero(ok):
+            b = self.birds[k[i]]
+            width = max(int(round(0.12 * b.span_m * focal_px / z[i, 1])), 1)
+            cv2.polylines(img, [np.round(px[i] * 16).astype(np.int32)], False, b.colour, width, cv2.LINE_AA, 4)
 
 
 @dataclass(frozen=True)

@@ -7,6 +7,7 @@ time alone, so a frame depends on nothing but its time.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -31,11 +32,16 @@ class CameraEffects:
     vignetting: float = 0.25
     seed: int = 0
 
-    def gains(self, t: float) -> tuple[float, float, float]:
-        """BGR gains at time ``t``: exposure times each channel's white balance."""
+    @functools.cached_property
+    def _drift(self) -> tuple[np.ndarray, np.ndarray]:
+        """The drift's angular frequencies and phases (4 waves x 3 sinusoids), drawn once from the seed."""
         rng = np.random.default_rng([self.seed, 0xe1f])
         freqs = rng.uniform(0.5, 2.0, (4, 3)) * (2.0 * math.pi / self.drift_period_s)
-        phases = rng.uniform(0, 2.0 * math.pi, (4, 3))
+        return freqs, rng.uniform(0, 2.0 * math.pi, (4, 3))
+
+    def gains(self, t: float) -> tuple[float, float, float]:
+        """BGR gains at time ``t``: exposure times each channel's white balance."""
+        freqs, phases = self._drift
         wave = np.sin(freqs * t + phases).sum(axis=1) / math.sqrt(1.5)  # unit variance each
         exposure = self.exposure_sigma * wave[0]
         wb = self.white_balance_sigma * wave[1:]

@@ -27,9 +27,11 @@ from chaser_bt.vision.frame_source import Region
 from sitl.world.camera.lighting import Lighting
 from sitl.world.camera.models import TargetModel, model_for
 from sitl.world.camera.props import boxes_reach
+from sitl.world.camera.distractors import Birds
 from sitl.world.camera.effects import vignette_map
 from sitl.world.camera.fields import DETAIL_M_PER_PX
 from sitl.world.camera.scene import GroundScene
+from sitl.world.camera.sky import Sky
 from sitl.world.camera.world import CameraWorld
 
 __all__ = ["Lighting", "TargetPose", "TargetLabel", "RenderedFrame", "Renderer", "Region", "attitude_from_velocity", "viewports"]
@@ -159,6 +161,7 @@ class Renderer:
         self._flat = np.empty((h, w, 3), np.uint8)
         self._flat[:] = np.round(self._ground_mean).astype(np.uint8)
         effects = world.effects if world is not None else None
+        self._birds = Birds(world.birds if world is not None else ())
         self._vignette_lo = None if effects is None or effects.vignetting <= 0 else cv2.resize(
             vignette_map(w, h, effects.vignetting), (w // _COARSE, h // _COARSE), interpolation=cv2.INTER_AREA)
 
@@ -195,11 +198,11 @@ class Renderer:
             self._draw_world(img, r_ce, c_enu, t, views)
         labels = self._draw_targets(img, r_ce, c_enu, targets, sun, lighting.brightness)
         effects = self.world.effects if self.world is not None else None
-        gains = effects.gains(t) + (1.0,) if effects is not None else None
+        gains = _gain_table(effects.gains(t)) if effects is not None else None
         for x0, y0, x1, y1 in views:
             view = img[y0:y1, x0:x1]
             if gains is not None:
-                view[:] = cv2.multiply(view, gains, dtype=cv2.CV_8U)
+                cv2.LUT(view, gains, dst=view)
             if blur_px >= 1.5:
                 view[:] = _motion_blur(view, blur_px, blur_angle_rad)
         if self.world is not None and self.world.specks is not None:
@@ -266,7 +269,7 @@ class Renderer:
             rays = np.stack([u_lo, v_lo, np.ones_like(u_lo)], axis=-1) @ r_ce.T
             rays *= inv_norm_lo[..., None]
             glare = sky_model.glare_map(rays, sun)[..., None]  # the lens sees it over sky and ground alike
-            sky = hor if ground.all() else np.where(ground[..., None], hor, sky_model.colour(rays, c_enu))  # no sky in view: none to work out
+            sky = hor if ground.all() else _sky_rows(sky_model, rays, ground, hor, c_enu)
             back = np.clip(sky + glare, 0, 255).astype(np.uint8)
         back = cv2.resize(back, size, interpolation=cv2.INTER_LINEAR)
         if self._vignette_lo is None:
@@ -345,19 +348,19 @@ class Renderer:
             prop.draw(img, project, f, views)
         for plane in world.aircraft:
             plane.draw(img, project, f, t)
-        if world.birds:  # most birds are out of view at any moment: cull them together first
-            px, z = project(np.array([b.position(t) for b in world.birds]))
+        birds = self._birds
+        if len(birds):  # most birds are out of view at any moment: cull them together first
+            px, z = project(birds.positions(t))
             w, h = self.camera.width_px, self.camera.height_px
             seen = (z > 1.0) & (px[:, 0] > -50) & (px[:, 0] < w + 50) & (px[:, 1] > -50) & (px[:, 1] < h + 50)
             # A bird's wings reach half its span from its body: their pixels lie within
             # f h / (z - h) (1 + |body pixel - centre| / f) of the body's (h the half span), plus the stroke.
-            half = np.array([0.5 * b.span_m for b in world.birds])
+            half = birds.half_span
             near = z - half <= 1.0
             reach = f * half / np.where(near, 1.0, z - half) * (1.0 + (np.abs(px[:, 0] - 0.5 * w) + np.abs(px[:, 1] - 0.5 * h)) / f)
             reach += 0.12 * 2.0 * half * f / np.maximum(z, 1.0) + 3.0
             seen &= near | boxes_reach(px - reach[:, None], px + reach[:, None], views)
-            for k in np.flatnonzero(seen):
-                world.birds[k].draw(img, project, f, t)
+            birds.draw(img, project, f, t, np.flatnonzero(seen))
 
     def _draw_targets(self, img: np.ndarray, r_ce: np.ndarray, c_enu: np.ndarray, targets: Sequence[TargetPose],
                       sun: np.ndarray, brightness: float) -> tuple[TargetLabel, ...]:
@@ -478,6 +481,25 @@ def _warp_into(out: np.ndarray, texture: np.ndarray, h_tex_to_img: np.ndarray, r
     roi = out[r0:r1]
     cv2.warpPerspective(texture, shift @ h_tex_to_img, (out.shape[1], r1 - r0), dst=roi, flags=cv2.INTER_LINEAR,
                         borderMode=border, borderValue=border_value)
+
+
+def _sky_rows(sky: Sky, rays: np.ndarray, ground: np.ndarray, horizon: np.ndarray, camera_enu: np.ndarray) -> np.ndarray:
+    """The background's colour over the coarse grid: the sky's along ``rays`` where they do not meet the
+    ground, ``horizon`` where they do; the sky worked out only on the rows that hold some of it."""
+    out = np.empty(ground.shape + (3,), np.float32)
+    out[:] = horizon
+    rows = np.flatnonzero(~ground.all(axis=1))
+    r0, r1 = int(rows[0]), int(rows[-1]) + 1
+    out[r0:r1] = np.where(ground[r0:r1, :, None], horizon, sky.colour(rays[r0:r1], camera_enu))
+    return out
+
+
+def _gain_table(gains: tuple[float, float, float]) -> np.ndarray:
+    """The BGR channel gains as a lookup table (256 x 1 x 3): each grey level times its channel's gain,
+    rounded and saturated as ``cv2.multiply`` does (worked out by it, on the 256 levels), applied in one
+    table lookup a pixel instead of a multiplication through floats."""
+    levels = np.repeat(np.arange(256, dtype=np.uint8)[:, None, None], 3, axis=2)
+    return cv2.multiply(levels, tuple(gains) + (1.0,), dtype=cv2.CV_8U)
 
 
 def _motion_blur(img: np.ndarray, length_px: float, angle_rad: float) -> np.ndarray:

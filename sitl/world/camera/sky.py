@@ -48,6 +48,7 @@ class Sky:
         out = hor + (zen - hor) * np.sqrt(np.clip(up, 0.0, 1.0))[..., None]
         if self.cloud_cover > 0.0:
             s = (self.cloud_height_m - float(camera_enu[2])) / np.maximum(up, 1e-3)
+            s[up <= 0.0] = 0.0  # no cloud below the horizon (alpha 0 there): read the tile where the camera is, not scattered far off
             mx = ((camera_enu[0] + s * rays[..., 0]) / self.cloud_m_per_px).astype(np.float32)
             my = ((camera_enu[1] + s * rays[..., 1]) / self.cloud_m_per_px).astype(np.float32)
             cov = cv2.remap(self.cloud_tile, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)

@@ -11,7 +11,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from chaser_bt.vision.camera import CameraModel
-from sitl.world.camera.distractors import Bird
+from sitl.world.camera.distractors import Bird, Birds
 from sitl.world.camera.effects import CameraEffects, vignette_map
 from sitl.world.camera.materials import MATERIALS, periodic_fractal_noise
 from sitl.world.camera.renderer import Renderer, TargetPose, attitude_from_velocity
@@ -106,6 +106,28 @@ def test_a_bird_flaps():
     bird.draw(img_b, project, 400.0, 0.125)  # a quarter flap later (2 Hz)
     assert (img_a < 100).any() and not np.array_equal(img_a, img_b)
 
+
+
+def test_birds_are_placed_and_their_wings_drawn_where_their_paths_put_them():
+    # By hand: centre (0, 0, 30), radius 20, 10 m/s, phase 0: at t = pi s the angle is 10 pi / 20 = pi / 2,
+    # so the body is 20 m north of the centre and 2 sin(0.3 pi / 2) m up.
+    a = Bird((0.0, 0.0, 30.0), 20.0, 10.0, 0.0, 2.0, 0.25, (0, 0, 0))
+    b = Bird((5.0, -3.0, 40.0), 50.0, 0.0, math.pi, 1.0, 2.0, (0, 0, 0))  # still, due west of its centre
+    flock = Birds((a, b))
+    np.testing.assert_allclose(flock.positions(math.pi), [[0.0, 20.0, 30.0 + 2.0 * math.sin(0.15 * math.pi)],
+                                                          [-45.0, -3.0, 40.0 + 2.0 * math.sin(0.3 * math.pi)]], atol=1e-12)
+    # Wings: a flap phase of 0 at t = 0 (7 x phase 0) lays them level, across the flight along the radius:
+    # bird a at angle 0 is east of its centre, so its tips are 1 m east and west of the body at 30 m.
+    seen = []
+    def project(p):
+        seen.append(np.asarray(p, float).copy())
+        c = np.asarray(p, float) - [20.0, -30.0, 30.0]  # a camera 30 m south of bird a, looking north
+        return np.stack([160 + 400 * c[:, 0] / c[:, 1], 120 - 400 * c[:, 2] / c[:, 1]], axis=1), c[:, 1]
+    img = np.full((240, 320, 3), 200, np.uint8)
+    flock.draw(img, project, 400.0, 0.0, which=[0])
+    np.testing.assert_allclose(seen[0], [[19.0, 0.0, 30.0], [20.0, 0.0, 30.0], [21.0, 0.0, 30.0]], atol=1e-12)
+    dark = np.argwhere(img[..., 0] < 100)  # a level stroke 2 m wide at 30 m: 400 * 2 / 30 = 27 px across the centre
+    assert abs(dark[:, 0].mean() - 120) < 1.5 and dark[:, 1].min() < 148 and dark[:, 1].max() > 172
 
 def test_filtering_with_distance_calms_the_far_ground(meadow):
     low = CameraModel(width_px=320, height_px=240, tilt_rad=0.0)
