@@ -37,6 +37,7 @@ class Bird:
         return Birds((self,)).positions(t)[0]
 
     def draw(self, img: np.ndarray, project: Projector, focal_px: float, t: float) -> None:
+        """Draw this bird at time ``t`` (:meth:`Birds.draw`)."""
         Birds((self,)).draw(img, project, focal_px, t)
 
 
