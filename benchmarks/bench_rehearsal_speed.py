@@ -12,8 +12,9 @@ included), ``trackers`` (the tracker bank's corrections and advances, the refine
 included) and ``frames`` / ``whole_frames`` counted; the rest of a tick is the simulator, the tree and the scoring.
 
 Prints one JSON line: {"name": "rehearsal_speed", "realtime_factor_median", "reference_realtime_factor_median",
-"speedup_vs_reference", "tick_ms_median", "parts_ms", "sim_time_s", "runs": [...], "load_avg_1m"}.
+"speedup_vs_reference", "tick_ms_median", "parts_ms", "sim_time_s", "runs": [...], "opencv_threads", "load_avg_1m"}.
 Run: .venv/bin/python benchmarks/bench_rehearsal_speed.py [--seed 1] [--sim-s 300] [--repeats 3] [--no-reference]
+[--opencv-threads 1]
 """
 
 from __future__ import annotations
@@ -75,7 +76,13 @@ def main() -> None:
     parser.add_argument("--sim-s", type=float, default=300.0, help="simulated seconds per run (the scenario's 300 by default)")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--no-reference", action="store_true", help="skip the whole-frame reference runs")
+    parser.add_argument("--opencv-threads", type=int, default=0,
+                        help="OpenCV's threads (1: a campaign worker's setting; 0: OpenCV's default)")
     args = parser.parse_args()
+    if args.opencv_threads > 0:
+        import cv2
+
+        cv2.setNumThreads(args.opencv_threads)
     os.environ.setdefault("MAVLINK20", "1")
     from sitl.bench.rehearsal import rehearse
     from sitl.bench.sensors import SensorOptions
@@ -108,6 +115,7 @@ def main() -> None:
     if refs:
         ref_rtf = statistics.median(r["realtime_factor"] for r in refs)
         out |= {"reference_realtime_factor_median": ref_rtf, "speedup_vs_reference": round(rtf / ref_rtf, 3), "reference_runs": refs}
+    out["opencv_threads"] = args.opencv_threads or "default"
     out["load_avg_1m"] = round(os.getloadavg()[0], 2)
     print(json.dumps(out))
 
