@@ -65,9 +65,7 @@ class Projector:
 
     def pixel_of(self, points_enu: np.ndarray, vehicle_pos_enu: np.ndarray, body_attitude: Rotation) -> tuple[np.ndarray, np.ndarray]:
         """ENU points (N, 3) -> (pixels (N, 2), in_front (N,)); pixels behind the camera are nan."""
-        q = self.camera_quaternion(body_attitude)
-        rel = np.asarray(points_enu, float).reshape(-1, 3) - self.camera.position_enu(vehicle_pos_enu, body_attitude)
-        c = quat_rotate(quat_conjugate(q), rel)
+        c = self._optical(points_enu, vehicle_pos_enu, body_attitude)
         fx, fy = self.camera.focal_px
         front = c[:, 2] > 0.0
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -75,13 +73,16 @@ class Projector:
             v = np.where(front, 0.5 * self.camera.height_px + fy * c[:, 1] / c[:, 2], np.nan)
         return np.stack([u, v], axis=1), front
 
+    def _optical(self, points_enu: np.ndarray, vehicle_pos_enu: np.ndarray, body_attitude: Rotation) -> np.ndarray:
+        """ENU points (N, 3) in the optical frame (x right, y down, z along the axis), from the camera."""
+        rel = np.asarray(points_enu, float).reshape(-1, 3) - self.camera.position_enu(vehicle_pos_enu, body_attitude)
+        return quat_rotate(quat_conjugate(self.camera_quaternion(body_attitude)), rel)
+
     def angle_outside_rad(self, point_enu: np.ndarray, vehicle_pos_enu: np.ndarray, body_attitude: Rotation) -> float:
         """A lower bound on the angle between the ray to ``point_enu`` and any ray through the image
         (0 inside it): the largest angle by which the ray lies outside one of the four planes through
         the camera and an image edge (the view is inside each of them, so it is at least that far)."""
-        q = self.camera_quaternion(body_attitude)
-        rel = np.asarray(point_enu, float).reshape(3) - self.camera.position_enu(vehicle_pos_enu, body_attitude)
-        c = quat_rotate(quat_conjugate(q), rel[None])[0]
+        c = self._optical(point_enu, vehicle_pos_enu, body_attitude)[0]
         n = float(np.linalg.norm(c))
         if n <= 0.0:
             return 0.0
