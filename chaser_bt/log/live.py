@@ -12,6 +12,7 @@ dropped by the server at no cost to the mission.
 from __future__ import annotations
 
 import logging
+import time
 
 import foxglove
 
@@ -29,9 +30,16 @@ class LiveViewError(RuntimeError):
 
 
 class LiveSink:
-    """Serve the flight's channels on ``ws://host:port`` (port 0: any free port, see :attr:`port`)."""
+    """Serve the flight's channels on ``ws://host:port`` (port 0: any free port, see :attr:`port`).
 
-    def __init__(self, port: int = DEFAULT_PORT, host: str = "127.0.0.1", name: str = "chaser-bt") -> None:
+    ``linger_s``: how long :meth:`close` keeps serving before it stops the server. The SDK sends from
+    its own tasks and has no flush, so stopping at once can drop the flight's last messages (the
+    tree's final state, written as the recorder closes) before they reach a subscriber.
+    """
+
+    def __init__(self, port: int = DEFAULT_PORT, host: str = "127.0.0.1", name: str = "chaser-bt",
+                 linger_s: float = 0.5) -> None:
+        self.linger_s = linger_s
         self._context = foxglove.Context()
         self._channels = {
             topic: foxglove.Channel(
@@ -59,4 +67,5 @@ class LiveSink:
         if self.closed:
             return
         self.closed = True
+        time.sleep(self.linger_s)
         self._server.stop()

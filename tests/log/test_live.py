@@ -71,7 +71,7 @@ class Client:
 
 @pytest.fixture()
 def live():
-    sink = LiveSink(port=0)
+    sink = LiveSink(port=0, linger_s=2.0)  # a loaded CI machine: room for the last messages
     try:
         with connect(f"ws://127.0.0.1:{sink.port}", subprotocols=[SUBPROTOCOL], open_timeout=10) as ws:
             client = Client(ws)
