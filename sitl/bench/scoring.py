@@ -43,7 +43,7 @@ from chaser_bt.radar.correlator import Association, TrackCorrelator, TrackPoints
 from chaser_bt.vision.camera import CameraModel
 
 __all__ = ["AUTONOMOUS_MODES", "FOLLOW_LEAVES", "TickRecord", "Scores", "score_ticks", "box_iou", "box_matches",
-           "estimate_matches", "in_frustum", "belief_snapshot", "association_windows", "AssociationRecorder", "RehearsalObserver"]
+           "estimate_matches", "in_frustum", "belief_snapshot", "follow_geometry_errors", "association_windows", "AssociationRecorder", "RehearsalObserver"]
 
 AUTONOMOUS_MODES = ("GUIDED", "ALT_HOLD")
 FOLLOW_LEAVES = ("CVFollow", "FollowGlobal")
@@ -260,6 +260,18 @@ def score_ticks(records: Sequence[TickRecord], *, has_target: bool = True, has_c
         radar_assoc_frac=right, wrong_assoc_frac=wrong, radar_windows=windows, detection_frames=frames,
         t_validated=t_val, t_alt_reached=t_alt, t_acquired=t_acq, t_follow_end=t_end,
     )
+
+
+def follow_geometry_errors(trace: FlightTrace) -> tuple[float | None, float | None]:
+    """How far the vehicle sat from the follow geometry it was asked for: medians over the trace's
+    ``follow`` ticks of |slant range - desired| (m) and |depression - desired| (rad), from the truth.
+    (None, None) without a follow phase or a desired geometry."""
+    follow = np.array([p == FOLLOW_PHASE for p in trace.phase], dtype=bool)
+    if not follow.any() or not math.isfinite(trace.desired_range_m) or not math.isfinite(trace.desired_elevation_rad):
+        return None, None
+    rng = np.abs(trace.slant_range_m[follow] - trace.desired_range_m)
+    elev = np.abs(trace.elevation_rad[follow] - trace.desired_elevation_rad)
+    return float(np.nanmedian(rng)), float(np.nanmedian(elev))
 
 
 # --- watching a live rehearsal -----------------------------------------------------------------

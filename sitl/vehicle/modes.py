@@ -80,6 +80,19 @@ def sqrt_controller(error: float, p: float, accel_max: float, dt: float = 0.0) -
     return out
 
 
+def inv_sqrt_controller(output: float, p: float, accel_max: float) -> float:
+    """The error at which :func:`sqrt_controller` returns ``output`` (ArduPilot inv_sqrt_controller)."""
+    if accel_max <= 0.0:
+        return output / p
+    if p <= 0.0:
+        return output * output / (2.0 * accel_max)
+    linear = accel_max / p  # the output where the linear part ends
+    if abs(output) <= linear:
+        return output / p
+    e = accel_max / (2.0 * p * p) + output * output / (2.0 * accel_max)
+    return e if output > 0.0 else -e
+
+
 def kinematic_limit(dx: float, dy: float, dz: float, max_xy: float, max_up: float, max_dn: float) -> float:
     """The largest speed along the direction (dx, dy, dz) that keeps its horizontal part within
     ``max_xy`` and its vertical part within ``max_up`` / ``max_dn`` (ArduPilot kinematic_limit)."""
@@ -204,6 +217,10 @@ class PositionController:
         self.xy_external = self.z_external = False  # targets set by a trajectory this step, not shaped
         self.speed_xy = 1.0
         self.accel_xy = 1.0
+        # the position error's correction (AC_PosControl set_correction_speed_accel_xy): a sqrt controller
+        # of gain POS_XY_P braking at corr_accel_xy, the error held within what gives corr_speed_xy
+        self.corr_speed_xy = 10.0
+        self.corr_accel_xy = 2.5
         self.ix = self.iy = 0.0
         self._evf = self._dvf = (0.0, 0.0)  # the filtered velocity error and its filtered derivative
         self.tpz = self.tvz = 0.0
@@ -252,6 +269,11 @@ class PositionController:
         self.xy_pos_goal = True
         self.gx, self.gy = x, y
         self.speed_xy, self.accel_xy = speed, accel
+
+    def set_correction_xy(self, speed: float, accel: float) -> None:
+        """The position error's correction limits (AC_PosControl set_correction_speed_accel_xy; a mode
+        sets them on entry, WPNAV_SPEED and WPNAV_ACCEL for most)."""
+        self.corr_speed_xy, self.corr_accel_xy = speed, accel
 
     def set_vel_xy(self, vx: float, vy: float, accel: float) -> None:
         """Fly at (vx, vy), reached at ``accel`` m/s^2."""
@@ -344,11 +366,12 @@ class PositionController:
                   angle_max: float) -> tuple[float, float]:
         """Advance the horizontal target and return the (roll, pitch) that tracks it."""
         ffx, ffy = self._shape_xy(dt)
+        cx, cy = self._position_correction(dt, px, py)
         # the velocity PID (AC_PID_2D): its error and the error's derivative each low-passed at VEL_XY_FILT_HZ
         k = lowpass_alpha(dt, VEL_XY_FILT_HZ)
         (fx, fy), (dx, dy) = self._evf, self._dvf
-        evx = fx + k * (self.tvx + POS_XY_P * (self.tpx - px) - vx - fx)
-        evy = fy + k * (self.tvy + POS_XY_P * (self.tpy - py) - vy - fy)
+        evx = fx + k * (self.tvx + cx - vx - fx)
+        evy = fy + k * (self.tvy + cy - vy - fy)
         dx += k * ((evx - fx) / dt - dx)
         dy += k * ((evy - fy) / dt - dy)
         self._evf, self._dvf = (evx, evy), (dx, dy)
@@ -366,6 +389,21 @@ class PositionController:
             self.ix = min(max(self.ix + VEL_XY_I * evx * dt, -VEL_XY_IMAX), VEL_XY_IMAX)
             self.iy = min(max(self.iy + VEL_XY_I * evy * dt, -VEL_XY_IMAX), VEL_XY_IMAX)
         return accel_to_lean(ax, ay, yaw)
+
+    def _position_correction(self, dt: float, px: float, py: float) -> tuple[float, float]:
+        """The velocity that corrects the horizontal position error (AC_P_2D update_all): a sqrt controller
+        on the error's length, and a target further than its error limit dragged back to it."""
+        ex, ey = self.tpx - px, self.tpy - py
+        e = math.hypot(ex, ey)
+        if e <= 0.0:
+            return 0.0, 0.0
+        e_max = inv_sqrt_controller(self.corr_speed_xy, POS_XY_P, self.corr_accel_xy)
+        if e_max > 0.0 and e > e_max:
+            ex, ey = ex * e_max / e, ey * e_max / e
+            self.tpx, self.tpy = px + ex, py + ey
+            e = e_max
+        c = sqrt_controller(e, POS_XY_P, self.corr_accel_xy, dt) / e
+        return ex * c, ey * c
 
     def _shape_z(self, dt: float) -> float:
         if self.z_external:
@@ -493,6 +531,7 @@ class FlightMode(abc.ABC):
     def enter(self, ap: ModeHost) -> str | None:
         """Initialise on entry; return a failure reason to refuse the change."""
         ap.reset_controller()
+        ap.pc.set_correction_xy(ap.p["WPNAV_SPEED"] * 0.01, ap.p["WPNAV_ACCEL"] * 0.01)
         return None
 
     @abc.abstractmethod
@@ -571,6 +610,12 @@ class Loiter(FlightMode):
     """Holds position; sticks fly it (velocity up to LOIT_SPEED), throttle as in ALT_HOLD."""
 
     number, name, requires_position, allows_arming = 5, "LOITER", True, True
+
+    def enter(self, ap: ModeHost) -> str | None:
+        super().enter(ap)
+        # AC_Loiter::init_target: corrections up to LOITER_VEL_CORRECTION_MAX (2 m/s) at LOIT_ACC_MAX
+        ap.pc.set_correction_xy(2.0, ap.p["LOIT_ACC_MAX"] * 0.01)
+        return None
 
     def run(self, ap: ModeHost, dt: float) -> None:
         p = ap.p

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from chaser_bt.log.trace import FlightTrace
 from chaser_bt.radar.correlator import Association
 from chaser_bt.search.belief import BeliefGrid, GridSpec
 from chaser_bt.vision.camera import CameraModel
@@ -19,6 +20,7 @@ from sitl.bench.scoring import (
     box_iou,
     box_matches,
     estimate_matches,
+    follow_geometry_errors,
     in_frustum,
     score_ticks,
 )
@@ -184,3 +186,29 @@ def test_belief_snapshot_is_the_normalised_belief_summed_over_altitude():
     expected = np.zeros((2, 3))
     expected[1, 2], expected[0, 0] = 0.75, 0.25
     assert np.allclose(snap.mass, expected)
+
+
+def test_follow_geometry_errors_are_medians_over_the_follow_ticks_only():
+    # Desired: 24 m slant range, 20 deg below. Follow ticks (target minus ownship):
+    # (24, 0, 0): range error 0, depression 0 -> 20 deg off; (0, 30, 0): 6 m, 20 deg;
+    # 20 m at exactly 20 deg below: 4 m, 0 deg; target unknown (NaN): left out.
+    # Medians of (0, 6, 4) and (20, 20, 0): 4 m and 20 deg. The launch tick, 1 km off, does not count.
+    d = math.radians(20.0)
+    rel = np.array([[1000.0, 0, 0], [24.0, 0, 0], [0, 30.0, 0], [20 * math.cos(d), 0, -20 * math.sin(d)],
+                    [np.nan] * 3])
+    own = np.tile([5.0, -3.0, 40.0], (5, 1))
+    trace = FlightTrace(t=np.arange(5) * 0.1, ownship_enu=own, target_enu=own + rel,
+                        phase=["launch", "follow", "follow", "follow", "follow"],
+                        desired_range_m=24.0, desired_elevation_rad=d)
+    rng, elev = follow_geometry_errors(trace)
+    assert rng == pytest.approx(4.0)
+    assert math.degrees(elev) == pytest.approx(20.0)
+
+
+def test_follow_geometry_errors_without_a_follow_phase_or_a_desired_geometry_are_none():
+    own = np.zeros((2, 3))
+    rel = np.array([[24.0, 0, 0], [24.0, 0, 0]])
+    assert follow_geometry_errors(FlightTrace(t=np.zeros(2), ownship_enu=own, target_enu=rel, phase=["launch"] * 2,
+                                              desired_range_m=24.0, desired_elevation_rad=0.3)) == (None, None)
+    assert follow_geometry_errors(FlightTrace(t=np.zeros(2), ownship_enu=own, target_enu=rel,
+                                              phase=["follow"] * 2)) == (None, None)

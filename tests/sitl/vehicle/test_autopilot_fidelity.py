@@ -7,9 +7,18 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from sitl.vehicle.airframe import AirframeParams
-from sitl.vehicle.modes import PositionController, StraightSCurve, rtl_return_alt, stopping_point
+from sitl.vehicle.modes import (
+    PositionController,
+    StraightSCurve,
+    inv_sqrt_controller,
+    rtl_return_alt,
+    sqrt_controller,
+    stopping_point,
+)
 from sitl.vehicle.physics import WindParams
 
 GUIDED, RTL, LAND = 4, 6, 9
@@ -103,6 +112,45 @@ def test_the_velocity_pid_low_passes_its_error_and_adds_the_derivative_as_arduco
     roll, pitch = pc.update_xy(0.01, 0.0, 0.0, 0.0, 0.0, 0.0, math.radians(30.0))
     assert roll == pytest.approx(math.atan(1.9069 / 9.80665), abs=2e-4)
     assert pitch == pytest.approx(0.0, abs=1e-9)
+
+
+def test_the_position_error_is_corrected_by_a_sqrt_controller_as_arducopters():
+    # AC_P_2D with PSC_POSXY_P 1 and GUIDED's correction limits (WPNAV_SPEED 10 m/s, WPNAV_ACCEL 2.5 m/s^2):
+    # a 5 m error is past the linear part (2.5 m), so the correction is sqrt(2 * 2.5 * (5 - 1.25)) = 4.3301
+    # m/s, not 5. Through the velocity PID's first 10 ms step (the factor 1.90687 worked in the test above)
+    # that asks 8.2570 m/s^2 east (linear: 9.5344), under the 45 deg limit.
+    pc = PositionController(8.0, 157.0)
+    pc.reset(0.0, 0.0, 20.0, 0.0, 0.0, 0.0, 0.0)
+    pc.set_correction_xy(10.0, 2.5)
+    pc.tpx, pc.xy_external = 5.0, True
+    roll, _ = pc.update_xy(0.01, 0.0, 0.0, 0.0, 0.0, 0.0, math.radians(45.0))
+    assert roll == pytest.approx(math.atan(8.2570 / 9.80665), abs=2e-4)
+
+
+def test_a_target_beyond_the_error_limit_is_dragged_back_to_it():
+    # The error that asks for the full 10 m/s: 2.5 / 2 + 10^2 / (2 * 2.5) = 21.25 m. A target 30 m ahead
+    # of the vehicle is moved back to 21.25 m ahead (AC_P_2D's _error_max), along the same line.
+    pc = PositionController(8.0, 157.0)
+    pc.reset(0.0, 0.0, 20.0, 0.0, 0.0, 0.0, 0.0)
+    pc.set_correction_xy(10.0, 2.5)
+    pc.tpx, pc.tpy, pc.xy_external = 18.0, 24.0, True  # 30 m out, 3-4-5
+    pc.update_xy(0.01, 0.0, 0.0, 0.0, 0.0, 0.0, math.radians(30.0))
+    assert (pc.tpx, pc.tpy) == pytest.approx((21.25 * 0.6, 21.25 * 0.8))
+
+
+@pytest.mark.parametrize(("output", "p", "accel", "expected"), [
+    (10.0, 1.0, 2.5, 21.25),  # past the linear part: accel / (2 p^2) + v^2 / (2 accel)
+    (2.0, 1.0, 2.5, 2.0),     # inside it: v / p
+    (-10.0, 1.0, 2.5, -21.25),
+    (3.0, 0.5, 0.0, 6.0),     # no acceleration limit: linear
+])
+def test_inv_sqrt_controller_by_hand(output, p, accel, expected):
+    assert inv_sqrt_controller(output, p, accel) == pytest.approx(expected)
+
+
+@given(st.floats(-30.0, 30.0), st.floats(0.2, 3.0), st.floats(0.5, 10.0))
+def test_inv_sqrt_controller_inverts_sqrt_controller(output, p, accel):
+    assert sqrt_controller(inv_sqrt_controller(output, p, accel), p, accel) == pytest.approx(output, abs=1e-9)
 
 
 def test_a_guided_position_target_is_flown_on_a_straight_3d_line(airborne, run_for):
