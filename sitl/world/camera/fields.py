@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from sitl.world.camera.materials import GROUND_M_PER_PX, MATERIALS, fractal_noise
@@ -93,16 +94,16 @@ def _patchwork(style: GroundStyle, rng: np.random.Generator, n: int) -> np.ndarr
     weights = np.array([style.materials[m] for m in names], float)
     choice = rng.choice(len(names), size=count, p=weights / weights.sum())
     img = np.zeros((n, n, 3), np.float32)
-    for k in range(count):
-        mask = cell == k
-        if not mask.any():
+    # each field's bounding box in one pass over the image (labels 1..count; None: a field with no pixel)
+    boxes = ndimage.find_objects(cell.astype(np.int32) + 1, max_label=count)
+    for k, box in enumerate(boxes):
+        if box is None:
             continue
-        rows, cols = np.nonzero(mask)
-        r0, r1, c0, c1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
+        r0, r1, c0, c1 = box[0].start, box[0].stop, box[1].start, box[1].stop
         side = max(r1 - r0, c1 - c0)
         patch = MATERIALS[names[choice[k]]](rng, int(side), rng.uniform(0, math.pi), rng.uniform(*style.dryness))
-        sub = mask[r0:r1, c0:c1]
-        img[r0:r1, c0:c1][sub] = patch[: r1 - r0, : c1 - c0][sub]
+        sub = cell[box] == k
+        img[box][sub] = patch[: r1 - r0, : c1 - c0][sub]
     # Field margins: a thin darker strip where fields meet.
     edges = cv2.morphologyEx(cell.astype(np.float32), cv2.MORPH_GRADIENT, np.ones((3, 3), np.uint8)) > 0
     img[edges] *= 0.8
