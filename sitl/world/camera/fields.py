@@ -81,6 +81,16 @@ def make_field_ground(style: GroundStyle, seed: int, sun_azimuth_rad: float, siz
 
 def _patchwork(style: GroundStyle, rng: np.random.Generator, n: int) -> np.ndarray:
     """Voronoi fields, each a material patch with its own direction; boundaries slightly wobbly."""
+    cell, kinds = _field_layout(style, rng, n)
+    img = _paint_fields(cell, kinds, style, rng)
+    # Field margins: a thin darker strip where fields meet.
+    edges = cv2.morphologyEx(cell.astype(np.float32), cv2.MORPH_GRADIENT, np.ones((3, 3), np.uint8)) > 0
+    img[edges] *= 0.8
+    return img
+
+
+def _field_layout(style: GroundStyle, rng: np.random.Generator, n: int) -> tuple[np.ndarray, list[str]]:
+    """The fields: each pixel's field (n x n, 0..count-1), wobbly Voronoi cells; and each field's material."""
     mean_field_px = np.mean(style.field_m) / GROUND_M_PER_PX
     count = max(int((n / mean_field_px) ** 2), 4)
     seeds = rng.uniform(0, n, (count, 2)).astype(np.float32)
@@ -93,20 +103,22 @@ def _patchwork(style: GroundStyle, rng: np.random.Generator, n: int) -> np.ndarr
     names = list(style.materials)
     weights = np.array([style.materials[m] for m in names], float)
     choice = rng.choice(len(names), size=count, p=weights / weights.sum())
-    img = np.zeros((n, n, 3), np.float32)
+    return cell, [names[c] for c in choice]
+
+
+def _paint_fields(cell: np.ndarray, kinds: list[str], style: GroundStyle, rng: np.random.Generator) -> np.ndarray:
+    """Each field filled with its own patch of its material, drawn over the field's bounding box."""
+    img = np.zeros(cell.shape + (3,), np.float32)
     # each field's bounding box in one pass over the image (labels 1..count; None: a field with no pixel)
-    boxes = ndimage.find_objects(cell.astype(np.int32) + 1, max_label=count)
+    boxes = ndimage.find_objects(cell.astype(np.int32) + 1, max_label=len(kinds))
     for k, box in enumerate(boxes):
         if box is None:
             continue
         r0, r1, c0, c1 = box[0].start, box[0].stop, box[1].start, box[1].stop
         side = max(r1 - r0, c1 - c0)
-        patch = MATERIALS[names[choice[k]]](rng, int(side), rng.uniform(0, math.pi), rng.uniform(*style.dryness))
+        patch = MATERIALS[kinds[k]](rng, int(side), rng.uniform(0, math.pi), rng.uniform(*style.dryness))
         sub = cell[box] == k
         img[box][sub] = patch[: r1 - r0, : c1 - c0][sub]
-    # Field margins: a thin darker strip where fields meet.
-    edges = cv2.morphologyEx(cell.astype(np.float32), cv2.MORPH_GRADIENT, np.ones((3, 3), np.uint8)) > 0
-    img[edges] *= 0.8
     return img
 
 

@@ -204,43 +204,23 @@ def test_parts_of_a_world_can_be_left_out():
 
 
 @pytest.mark.parametrize("family", ["farmland", "suburb", "coast"])
-def test_field_patchwork_equals_the_field_by_field_brute_force(family):
-    # The patchwork finds each field's bounding box in one pass; the brute force masks the whole image
-    # for every field. The same rng draws in the same order must give the same image, bit for bit.
-    from scipy.spatial import cKDTree
-
-    from sitl.world.camera.fields import _patchwork
-    from sitl.world.camera.materials import GROUND_M_PER_PX, fractal_noise
+def test_fields_painted_by_bounding_box_equal_the_field_by_field_brute_force(family):
+    # The painter finds each field's bounding box in one pass; the brute force masks the whole image for
+    # every field. The same layout and the same rng draws in the same order must give the same image.
+    from sitl.world.camera.fields import _field_layout, _paint_fields
 
     style = dataclasses.replace(FAMILIES[family].ground, field_m=(10.0, 30.0))  # many fields on a small image
-    fast = _patchwork(style, np.random.default_rng(5), 256)
-
-    # the brute force, from the same generator state: the layout as _patchwork draws it, then a mask per field
-    rng = np.random.default_rng(5)
-    n = 256
-    mean_field_px = np.mean(style.field_m) / GROUND_M_PER_PX
-    count = max(int((n / mean_field_px) ** 2), 4)
-    seeds = rng.uniform(0, n, (count, 2)).astype(np.float32)
-    half = n // 2
-    warp = cv2.resize((fractal_noise(rng, 256, (4, 16)) - 0.5) * mean_field_px * 0.3, (half, half))
-    y, x = np.mgrid[0:half, 0:half].astype(np.float32) * 2.0
-    points = np.column_stack([(x + warp).ravel(), (y - warp).ravel()])
-    cell = cKDTree(seeds).query(points, workers=1)[1].reshape(half, half).astype(np.uint16)
-    cell = cv2.resize(cell, (n, n), interpolation=cv2.INTER_NEAREST)
-    names = list(style.materials)
-    weights = np.array([style.materials[m] for m in names], float)
-    choice = rng.choice(len(names), size=count, p=weights / weights.sum())
-    slow = np.zeros((n, n, 3), np.float32)
-    for k in range(count):
+    cell, kinds = _field_layout(style, np.random.default_rng(5), 256)
+    assert len(kinds) > 20
+    fast = _paint_fields(cell, kinds, style, np.random.default_rng(9))
+    rng = np.random.default_rng(9)
+    slow = np.zeros((256, 256, 3), np.float32)
+    for k, kind in enumerate(kinds):
         mask = cell == k
         if not mask.any():
             continue
         rows, cols = np.nonzero(mask)
         r0, r1, c0, c1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
-        side = max(r1 - r0, c1 - c0)
-        patch = MATERIALS[names[choice[k]]](rng, int(side), rng.uniform(0, math.pi), rng.uniform(*style.dryness))
-        slow[r0:r1, c0:c1][mask[r0:r1, c0:c1]] = patch[: r1 - r0, : c1 - c0][mask[r0:r1, c0:c1]]
-    edges = cv2.morphologyEx(cell.astype(np.float32), cv2.MORPH_GRADIENT, np.ones((3, 3), np.uint8)) > 0
-    slow[edges] *= 0.8
-    assert count > 20
+        patch = MATERIALS[kind](rng, int(max(r1 - r0, c1 - c0)), rng.uniform(0, math.pi), rng.uniform(*style.dryness))
+        slow[mask] = patch[: r1 - r0, : c1 - c0][mask[r0:r1, c0:c1]]
     np.testing.assert_array_equal(fast, slow)
