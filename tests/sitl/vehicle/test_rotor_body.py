@@ -165,6 +165,23 @@ def test_a_touchdown_faster_than_the_crash_speed_is_a_crash(height_m, crash):
     assert body.on_ground and body.crashed is crash
 
 
+def test_the_accelerometer_feels_the_ground_stop_the_touchdown():
+    # Level, nose 1 rad east of north, motors off, no drag, 1 mm up and moving (1, 0.5, 0.8) m/s NED. In the
+    # step gravity adds g dt to the sink, the body reaches the ground and the ground takes the velocity out:
+    # the specific force is that push, (-1, -0.5, -(0.8 + g dt)) / dt in NED, turned into the body by the
+    # yaw: x = -(cos 1 + 0.5 sin 1) 400, y = -(-sin 1 + 0.5 cos 1) 400, z = -320 - g. Over the step it
+    # and gravity add up to the velocity it had: an estimator integrating the IMU sees the aircraft stop.
+    params = dataclasses.replace(AIRFRAMES["s1000"], drag_lin=0.0, drag_quad=0.0)
+    body = RotorBody(params, position_ned=(0.0, 0.0, -0.001), velocity_ned=(1.0, 0.5, 0.8),
+                     attitude=Rotation.from_euler("z", 1.0))
+    accel = body.step([OFF] * 8, DT)
+    assert body.on_ground and not body.crashed
+    c, s = math.cos(1.0), math.sin(1.0)
+    np.testing.assert_allclose(accel, (-(c + 0.5 * s) * 400.0, -(-s + 0.5 * c) * 400.0, -320.0 - GRAVITY), rtol=1e-12)
+    np.testing.assert_array_equal(body.velocity_ned, 0.0)
+    np.testing.assert_array_equal(body.step([OFF] * 8, DT), (0.0, 0.0, -GRAVITY))  # then at rest: 1 g
+
+
 def test_a_steady_spin_about_the_vertical_integrates_to_its_angle():
     params = dataclasses.replace(AIRFRAMES["quad"], angular_damping=0.0)
     body = _aloft(params, rates_frd=(0.0, 0.0, 0.5))
