@@ -40,6 +40,9 @@ from scipy.spatial.transform import Rotation
 from sitl.vehicle.airframe import GRAVITY
 from sitl.vehicle.json_backend import SensorFrame, ServoPacket
 
+# How fast a body that touched down tilted tips back level onto its feet (rad/s): 15 deg in 0.13 s.
+SETTLE_RATE_RPS = 2.0
+
 __all__ = ["AIRFRAMES", "FRAMES", "RotorBody", "RotorFrame", "RotorParams", "rotor_airframe", "rotor_frame"]
 
 log = logging.getLogger(__name__)
@@ -380,9 +383,8 @@ class RotorBody:
         acc_e = dy - t_m * r12
         acc_d = dz - t_m * r22 + GRAVITY
         if self.on_ground:
-            if acc_d >= 0.0:  # the ground holds it level and still until the rotors lift it
-                self._rest()
-                return 0.0, 0.0, -GRAVITY
+            if acc_d >= 0.0:  # the ground holds it still, and levels it, until the rotors lift it
+                return self._rest(dt)
             self.on_ground = False
         # Rigid body: Euler's equations with a diagonal inertia, then rates, attitude, velocity, position.
         ix, iy, iz = p.inertia_kgm2
@@ -418,14 +420,31 @@ class RotorBody:
             # for 3 s after contact, and its landing late by as much.
             dx, dy, dz = dx - self._vx / dt, dy - self._vy / dt, dz - self._vz / dt
             self.on_ground = True
-            self._rest()
+            self._vx = self._vy = self._vz = self._pz = 0.0
+            self._wp = self._wq = self._wr = 0.0  # the feet stop it turning; levelling starts next step
         # Specific force in FRD: thrust along -z plus the drag turned into the body (R transposed).
         return (r00 * dx + r10 * dy + r20 * dz, r01 * dx + r11 * dy + r21 * dz, r02 * dx + r12 * dy + r22 * dz - t_m)
 
-    def _rest(self) -> None:
-        """Level on the ground at its heading, still."""
-        yaw = self.euler_ned()[2]
-        self._qw, self._qx, self._qy, self._qz = math.cos(yaw / 2.0), 0.0, 0.0, math.sin(yaw / 2.0)
-        self._wp = self._wq = self._wr = 0.0
+    def _rest(self, dt: float) -> tuple[float, float, float]:
+        """Still on the ground at its heading, a tilted body tipping back level onto its feet at up to
+        :data:`SETTLE_RATE_RPS` (the gyro sees it turn); returns the accelerometer's reading, the ground
+        holding it up against gravity.
+
+        Levelled within one step instead, a body that touched down leaning into a wind turned by 15 deg
+        unseen by the gyro: ArduCopter's EKF kept the lean, read gravity as a horizontal acceleration,
+        slid its estimate a metre over the ground and took 12 s instead of 2 to call the landing."""
         self._vx = self._vy = self._vz = 0.0
         self._pz = 0.0
+        roll, pitch, yaw = self.euler_ned()
+        tilt = math.hypot(roll, pitch)
+        k = 1.0 if tilt <= SETTLE_RATE_RPS * dt else SETTLE_RATE_RPS * dt / tilt  # the tilt's share undone now
+        d_roll, d_pitch = -roll * k, -pitch * k
+        self._wp, self._wq, self._wr = (d_roll / dt, d_pitch * math.cos(roll) / dt, -d_pitch * math.sin(roll) / dt)
+        roll, pitch = roll + d_roll, pitch + d_pitch
+        cr, sr = math.cos(roll / 2.0), math.sin(roll / 2.0)
+        cp, sp = math.cos(pitch / 2.0), math.sin(pitch / 2.0)
+        cy, sy = math.cos(yaw / 2.0), math.sin(yaw / 2.0)
+        self._qw, self._qx = cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy
+        self._qy, self._qz = cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy
+        return (GRAVITY * math.sin(pitch), -GRAVITY * math.sin(roll) * math.cos(pitch),
+                -GRAVITY * math.cos(roll) * math.cos(pitch))

@@ -182,6 +182,29 @@ def test_the_accelerometer_feels_the_ground_stop_the_touchdown():
     np.testing.assert_array_equal(body.step([OFF] * 8, DT), (0.0, 0.0, -GRAVITY))  # then at rest: 1 g
 
 
+def test_a_body_that_lands_tilted_tips_back_level_and_the_gyro_sees_it():
+    # Touching down rolled 0.3 rad (leaning into a wind), motors off: the ground stops it, then tips it level
+    # at SETTLE_RATE_RPS, 2 rad/s: 0.3 / (2 / 400) = 60 steps of p = -2 rad/s, the gyro's integral the roll
+    # undone, and meanwhile the accelerometer reads the ground holding it up, gravity's reaction turned into
+    # the rolled body: (0, -g sin roll, -g cos roll). Levelled unseen, ArduCopter's EKF kept the lean.
+    params = dataclasses.replace(AIRFRAMES["s1000"], drag_lin=0.0, drag_quad=0.0)
+    body = RotorBody(params, position_ned=(0.0, 0.0, -0.0005), velocity_ned=(0.0, 0.0, 0.5),
+                     attitude=Rotation.from_euler("ZYX", (1.0, 0.0, 0.3)))
+    body.step([OFF] * 8, DT)
+    assert body.on_ground and body.euler_ned() == pytest.approx((0.3, 0.0, 1.0), abs=1e-12)
+    accel = body.step([OFF] * 8, DT)
+    np.testing.assert_allclose(accel, (0.0, -GRAVITY * math.sin(0.295), -GRAVITY * math.cos(0.295)), atol=1e-9)
+    turned = body.rates_frd[0] * DT
+    for _ in range(59):
+        body.step([OFF] * 8, DT)
+        assert body.rates_frd[0] == pytest.approx(-2.0) and body.rates_frd[1:] == pytest.approx((0.0, 0.0), abs=1e-9)
+        turned += body.rates_frd[0] * DT
+    assert turned == pytest.approx(-0.3, abs=1e-9)
+    assert body.euler_ned() == pytest.approx((0.0, 0.0, 1.0), abs=1e-9)
+    np.testing.assert_allclose(body.step([OFF] * 8, DT), (0.0, 0.0, -GRAVITY), atol=1e-9)
+    np.testing.assert_allclose(body.rates_frd, 0.0, atol=1e-9)
+
+
 def test_a_steady_spin_about_the_vertical_integrates_to_its_angle():
     params = dataclasses.replace(AIRFRAMES["quad"], angular_damping=0.0)
     body = _aloft(params, rates_frd=(0.0, 0.0, 0.5))
