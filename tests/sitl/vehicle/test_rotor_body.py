@@ -66,14 +66,14 @@ def test_one_motor_at_full_thrust_turns_the_body_as_its_arm_says(frame):
         pwm = [OFF] * params.frame.motors
         pwm[i] = FULL
         body.step(pwm, DT)  # from rest: rate after one step = torque / inertia * dt
-        # Hand-worked: 15 N on a 0.25 m arm; thrust is up, so a motor on the right rolls the body
-        # left (negative roll), one on the nose pitches it up; its prop's drag, 0.02 m x 15 N,
+        # Hand-worked: 9.43 N on a 0.25 m arm; thrust is up, so a motor on the right rolls the body
+        # left (negative roll), one on the nose pitches it up; its prop's drag, 0.02 m x 9.43 N,
         # turns the body against the prop: a counter-clockwise prop yaws it clockwise (positive).
-        roll_nm, pitch_nm = -right * 0.25 * 15.0, fwd * 0.25 * 15.0
-        yaw_nm = (0.3 if turn == "ccw" else -0.3)
+        roll_nm, pitch_nm = -right * 0.25 * 9.43, fwd * 0.25 * 9.43
+        yaw_nm = (0.1886 if turn == "ccw" else -0.1886)
         np.testing.assert_allclose(body.rates_frd, (roll_nm / ix * DT, pitch_nm / iy * DT, yaw_nm / iz * DT),
                                    rtol=1e-9, atol=1e-12, err_msg=f"{frame} motor {i + 1}")
-        assert body.thrust_n[i] == pytest.approx(15.0) and body.thrust_n.sum() == pytest.approx(15.0)
+        assert body.thrust_n[i] == pytest.approx(9.43) and body.thrust_n.sum() == pytest.approx(9.43)
 
 
 @pytest.mark.parametrize("frame", list(LAYOUTS))
@@ -89,10 +89,12 @@ def test_speeding_up_the_counter_clockwise_props_yaws_the_body_clockwise(frame):
 
 def test_the_hover_throttle_follows_from_mass_and_thrust_curve():
     quad, s1000 = rotor_airframe("quad"), rotor_airframe("s1000")
-    # Hand-worked: quad 1.5 kg x 9.80665 / (4 x 15 N) = 0.2452 of full thrust; 0.35 x + 0.65 x² =
-    # 0.2452 gives x = 0.4013 of the spin range 0.15..0.95, PWM 1150 + 800 x = 1471 us.
-    assert quad.hover_thrust_fraction == pytest.approx(0.24517, abs=1e-5)
-    assert quad.hover_pwm_us == pytest.approx(1471.07, abs=0.01)
+    # Hand-worked: quad 1.5 kg x 9.80665 / (4 x 9.43 N) = 0.3900 of full thrust (ArduPilot's SITL quad's
+    # MOT_THST_HOVER); 0.35 x + 0.65 x² = 0.3900 gives x = 0.5508 of the spin range 0.15..0.95, PWM
+    # 1150 + 800 x = 1591 us.
+    assert quad.hover_thrust_fraction == pytest.approx(0.38998, abs=1e-5)
+    assert quad.hover_pwm_us == pytest.approx(1590.64, abs=0.01)
+    assert quad.ardupilot_params()["MOT_THST_HOVER"] == 0.39
     # S1000 7.5 kg x 9.80665 / (8 x 22 N) = 0.4179; x = 0.5766; PWM 1611 us.
     assert s1000.hover_thrust_fraction == pytest.approx(0.41790, abs=1e-5)
     assert s1000.hover_pwm_us == pytest.approx(1611.27, abs=0.01)
@@ -122,7 +124,7 @@ def test_with_the_motors_off_it_falls_and_the_accelerometer_reads_nothing():
 
 
 def test_in_wind_it_drifts_with_the_air_and_the_drag_it_feels_is_hand_worked():
-    quad = rotor_airframe("quad")
+    quad = dataclasses.replace(rotor_airframe("quad"), drag_lin=0.25, drag_quad=0.0)
     body = _aloft(quad, wind_ned=(3.0, -4.0, 0.0))
     hover = [quad.hover_pwm_us] * 4
     body.step(hover, DT)  # still air-relative speed 5 m/s: drag 0.25 N/(m/s) x (3, -4) / 1.5 kg
@@ -150,7 +152,7 @@ def test_resting_on_the_ground_with_idling_motors_nothing_moves():
 
 def test_above_the_hover_throttle_it_lifts_off_and_below_it_settles_back_gently():
     body = RotorBody.named("quad")
-    _run(body, [1600] * 4, 0.5)
+    _run(body, [1700] * 4, 0.5)
     assert not body.on_ground and body.position_ned[2] < -0.1
     _run(body, [body.params.hover_pwm_us - 40] * 4, 10.0)
     assert body.on_ground and not body.crashed and body.position_ned[2] == 0.0
