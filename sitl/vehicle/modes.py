@@ -878,18 +878,23 @@ class Guided(FlightMode):
         return self.sub == GuidedSubmode.TAKEOFF
 
 
-def land_descent_rate(ap: ModeHost) -> float:
-    """ArduCopter's landing descent rate: fast above LAND_ALT_LOW, LAND_SPEED below (m/s, > 0)."""
+def land_descent_rate(ap: ModeHost, dt: float = 0.0) -> float:
+    """ArduCopter's landing descent rate (m/s, > 0; Mode::land_run_vertical_control): a sqrt controller
+    towards LAND_ALT_LOW (PSC_POSZ_P, WPNAV_ACCEL_Z) held between LAND_SPEED and LAND_SPEED_HIGH (or
+    WPNAV_SPEED_DN), so the descent eases down to LAND_SPEED over the metre or two above LAND_ALT_LOW
+    and reaches it there, rather than starting to slow at it."""
     p = ap.p
-    if ap.alt_rel() > p["LAND_ALT_LOW"] * 0.01:
-        return (p["LAND_SPEED_HIGH"] or p["WPNAV_SPEED_DN"]) * 0.01
-    return p["LAND_SPEED"] * 0.01
+    slow = p["LAND_SPEED"] * 0.01
+    fast = max((p["LAND_SPEED_HIGH"] or p["WPNAV_SPEED_DN"]) * 0.01, slow)  # never faster for landing
+    low = max(p["LAND_ALT_LOW"], 100.0) * 0.01
+    rate = -sqrt_controller(low - ap.alt_rel(), POS_Z_P, p["WPNAV_ACCEL_Z"] * 0.01, dt)
+    return min(max(rate, slow), fast)
 
 
 def run_landing(ap: ModeHost, dt: float, hold_position: bool) -> None:
     """Descend at the landing rate, holding the horizontal target (or level without position)."""
     pc = ap.pc
-    pc.set_climb(-land_descent_rate(ap), ap.p["WPNAV_ACCEL_Z"] * 0.01)
+    pc.set_climb(-land_descent_rate(ap, dt), ap.p["WPNAV_ACCEL_Z"] * 0.01)
     if hold_position and ap.ekf_ok:
         ap.output_tracking(dt)
     else:

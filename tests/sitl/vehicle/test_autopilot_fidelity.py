@@ -4,6 +4,7 @@ from ArduPilot's formulas (RTL's return altitude, the S-curve, the take-off ramp
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from sitl.vehicle.modes import (
     PositionController,
     StraightSCurve,
     inv_sqrt_controller,
+    land_descent_rate,
     rtl_return_alt,
     sqrt_controller,
     stopping_point,
@@ -265,6 +267,26 @@ def test_takeoff_waits_out_the_arming_delay_spools_up_then_ramps_the_throttle(ma
         run_for(ap, 5.0, each=lambda a: heights.append(a.truth.pos_enu[2]))
         first_up = next(i for i, h in enumerate(heights) if h > 0.0) * 0.02
         assert first_up == pytest.approx(expected, abs=0.1)
+
+
+LAND_PARAMS = {"LAND_SPEED": 50, "LAND_SPEED_HIGH": 0, "WPNAV_SPEED_DN": 150, "LAND_ALT_LOW": 1000, "WPNAV_ACCEL_Z": 100}
+
+
+@pytest.mark.parametrize(("alt", "params", "expected"), [
+    (20.0, {}, 1.5),                               # far above LAND_ALT_LOW: WPNAV_SPEED_DN
+    (11.5, {}, math.sqrt(2.0 * 1.0 * (1.5 - 0.5))),  # 1.5 m above: sqrt(2 a (e - a / 2p^2)), 1.414
+    (11.0, {}, 1.0),                               # 1 m above: the linear part, p e
+    (10.3, {}, 0.5),                               # 0.3 m above: held at LAND_SPEED
+    (4.0, {}, 0.5),                                # below: LAND_SPEED
+    (1.5, {"LAND_ALT_LOW": 50}, 0.5),              # LAND_ALT_LOW is taken as at least 1 m
+    (30.0, {"LAND_SPEED_HIGH": 300}, 3.0),         # LAND_SPEED_HIGH over WPNAV_SPEED_DN
+    (30.0, {"WPNAV_SPEED_DN": 30}, 0.5),           # never slower than LAND_SPEED
+])
+def test_land_eases_to_land_speed_above_land_alt_low_as_arducopter(alt, params, expected):
+    # Mode::land_run_vertical_control: sqrt_controller(LAND_ALT_LOW - alt, PSC_POSZ_P 1, WPNAV_ACCEL_Z 1 m/s^2)
+    # held between -LAND_SPEED and the fast rate; the linear part reaches 1 m out (a / p^2)
+    host = SimpleNamespace(p=LAND_PARAMS | params, alt_rel=lambda: alt)
+    assert land_descent_rate(host) == pytest.approx(expected)
 
 
 def test_land_disarms_one_second_at_the_throttle_floor_and_a_spool_down_later(airborne, run_for):
