@@ -885,7 +885,7 @@ def land_descent_rate(ap: ModeHost, dt: float = 0.0) -> float:
     and reaches it there, rather than starting to slow at it."""
     p = ap.p
     slow = p["LAND_SPEED"] * 0.01
-    fast = max((p["LAND_SPEED_HIGH"] or p["WPNAV_SPEED_DN"]) * 0.01, slow)  # never faster for landing
+    fast = max((p["LAND_SPEED_HIGH"] or p["WPNAV_SPEED_DN"]) * 0.01, slow)  # at least LAND_SPEED
     low = max(p["LAND_ALT_LOW"], 100.0) * 0.01
     rate = -sqrt_controller(low - ap.alt_rel(), POS_Z_P, p["WPNAV_ACCEL_Z"] * 0.01, dt)
     return min(max(rate, slow), fast)
@@ -902,7 +902,7 @@ def run_landing(ap: ModeHost, dt: float, hold_position: bool) -> None:
 
 
 class Land(FlightMode):
-    """Descends (LAND_SPEED_HIGH / WPNAV_SPEED_DN, then LAND_SPEED below LAND_ALT_LOW) and disarms."""
+    """Descends (LAND_SPEED_HIGH / WPNAV_SPEED_DN, easing to LAND_SPEED by LAND_ALT_LOW) and disarms."""
 
     number, name = 9, "LAND"
 
