@@ -8,11 +8,12 @@ the others rehearsed in our world (``chaser-bt rehearse``, recorded the same way
 - ``patrol_wind``: the patrol in a steady 3 m/s westerly (blowing east: the third leg, flown west,
   is into the wind). ArduCopter: SIM_WIND_SPD / SIM_WIND_DIR; the built-in: the scenario's ``wind:``;
 - ``patrol_s1000``, ``patrol_s1000_wind``, ``patrol_quad``, ``patrol_quad_wind``: the patrol rehearsed in our
-  world (sitl/scenarios/patrol.yaml's field, no gusts; the S1000 in a steady 8 m/s westerly, enough that into it it needs its whole 30 deg of
-  lean, the quad, whose drag is fitted to ArduPilot's SITL quad, in 3 m/s as above) on one body per pair:
-  ArduCopter on our rotor body (S1000 or quad) through its JSON interface, the
-  built-in on an airframe of that body's mass, thrust, spin-up and drag (:func:`matched_airframe`), so
-  what differs is the autopilots alone. The three flights above differ in physics too;
+  world (sitl/scenarios/patrol.yaml's field, no gusts; the S1000 in a steady 8 m/s westerly, enough that
+  into it it needs its whole 30 deg of lean, the quad, whose drag is fitted to ArduPilot's SITL quad, in
+  3 m/s as above) on one body per pair: ArduCopter on our rotor body (S1000 or quad) through its JSON
+  interface, the built-in on an airframe of that body's mass, thrust, spin-up and drag
+  (:func:`matched_airframe`), so what differs is the autopilots alone. The three flights above differ
+  in physics too;
 - ``chase``: trees/chase.yaml rehearsed for 120 s in our world (sitl/scenarios/chase.yaml, ``--seed``),
   ArduCopter on our S1000 rotor body through its JSON interface, the built-in on its S1000 model: the
   report's ``t_airborne_s`` (judged), acquisition and fractions (shown), and the follow geometry's
@@ -39,9 +40,9 @@ compared and not the airframes, the built-in flies by default an airframe matche
 quad (its hover throttle and drag, :data:`QUAD_AIRFRAME`); ``--airframe s1000`` flies its own default
 S1000-class octocopter instead, whose lower drag makes the headwind cost it far less (the flights in our
 world set their own). A backend is a small class with ``start(case) -> url`` and ``stop()`` for the flights
-over TCP; in our world each backend names its autopilot to ``rehearse``. ArduCopter is looked for in ``--ardupilot DIR``, else
-``$CHASER_BT_ARDUPILOT``, else ``../shared/ardupilot`` beside the repository; when it is absent its
-flights are skipped and ``arducopter.skipped`` says why.
+over TCP; in our world each backend names its autopilot to ``rehearse``. ArduCopter is looked for in
+``--ardupilot DIR``, else ``$CHASER_BT_ARDUPILOT``, else ``../shared/ardupilot`` beside the repository;
+when it is absent its flights are skipped and ``arducopter.skipped`` says why.
 
 Each windy flight also gets ``into_wind_leg_slowdown_s``: its third leg's time less the calm flight's
 (:data:`WIND_PAIRS`), judged as a timing.
@@ -131,7 +132,7 @@ WORLD_SCENARIO = ROOT / "sitl/scenarios/patrol.yaml"
 # Shown, not judged: when the camera first confirms the intruder depends on what the detector happens
 # to see in the first frames (0-18 s across seeds on one autopilot), not on how the vehicle flies.
 # Nor the headwind's cost in each backend's own physics: flying our quad body (patrol_quad_wind, judged),
-# ArduCopter itself loses 1.27 s into the wind where on its SITL quad it loses 1.08 s, the built-in 1.30 s
+# ArduCopter itself loses 1.26 s into the wind where on its SITL quad it loses 1.08 s, the built-in 1.30 s
 # on either: that 0.2 s is between ArduPilot's SITL quad and our drag law, not between the autopilots.
 UNJUDGED = {"chase.t_acquire_s", "patrol_wind.into_wind_leg_slowdown_s"}
 

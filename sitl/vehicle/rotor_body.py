@@ -441,6 +441,9 @@ class RotorBody:
         self._pz = 0.0
         roll, pitch, yaw = self.euler_ned()
         tilt = math.hypot(roll, pitch)
+        if tilt == 0.0:  # level: nothing to turn (every step of a body standing on the ground)
+            self._wp = self._wq = self._wr = 0.0
+            return 0.0, 0.0, -GRAVITY
         k = 1.0 if tilt <= SETTLE_RATE_RPS * dt else SETTLE_RATE_RPS * dt / tilt  # the tilt's share undone now
         d_roll, d_pitch = -roll * k, -pitch * k
         self._wp, self._wq, self._wr = (d_roll / dt, d_pitch * math.cos(roll) / dt, -d_pitch * math.sin(roll) / dt)
