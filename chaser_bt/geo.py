@@ -11,6 +11,7 @@ and the points to share one vertical datum, since the geoid offset is constant o
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -142,11 +143,13 @@ def enu_to_ned(v: np.ndarray | tuple[float, float, float]) -> np.ndarray:
     return np.array([v[1], v[0], -v[2]], dtype=float)
 
 
+@functools.lru_cache(maxsize=16)
 def body_to_enu_rotation(roll: float, pitch: float, yaw: float) -> Rotation:
     """Attitude as MAVLink reports it (FRD body -> NED, radians) as a FLU body -> ENU rotation.
 
     ``R_enu_flu = R_enu_ned * R_ned_frd * R_frd_flu``; the returned rotation maps vectors in the
-    FLU body frame to ENU.
+    FLU body frame to ENU. The last few are kept: a tick asks for the same attitude many times (the
+    scorer, the camera, the telemetry), and building one costs more than the rest of its use.
     """
     r_ned_frd = Rotation.from_euler("ZYX", [yaw, pitch, roll])
     return _R_NED_ENU * r_ned_frd * _R_FLU_FRD

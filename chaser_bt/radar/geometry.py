@@ -13,6 +13,7 @@ over the few hundred metres between them the two differ by a few thousandths of 
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -97,7 +98,12 @@ class RadarPose:
 
     def from_enu(self, enu: np.ndarray) -> np.ndarray:
         """ENU points (..., 3) -> radar-frame points."""
-        return self.rotation.inv().apply(np.asarray(enu, float) - self.position_enu)
+        return self._to_radar.apply(np.asarray(enu, float) - self.position_enu)
+
+    @functools.cached_property
+    def _to_radar(self) -> Rotation:
+        """ENU -> radar frame (the rotation's inverse, asked for at every scan)."""
+        return self.rotation.inv()
 
     def rae_to_enu(self, range_m: np.ndarray, az_rad: np.ndarray, el_rad: np.ndarray) -> np.ndarray:
         """Range/azimuth/elevation -> ENU points."""

@@ -6,6 +6,7 @@ real camera sees them: thin dark lines, the kind of edge a tracker drifts onto.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Callable
 
@@ -34,10 +35,8 @@ class PowerLine:
         if views is None:
             views = [(0, 0, img.shape[1], img.shape[0])]
         k = len(self.poles_enu)
-        base = np.column_stack([self.poles_enu, np.zeros(k)])
-        top = base + [0.0, 0.0, self.height_m]
-        px_b, z_b = project(base)
-        px_t, z_t = project(top)
+        px, z = project(self._poles)  # feet, then tops
+        px_b, px_t, z_b, z_t = px[:k], px[k:], z[:k], z[k:]
         ahead = np.minimum(z_b, z_t) > 1.0
         width = np.maximum(np.round(0.25 * focal_px / np.where(ahead, z_b, 1.0)), 1.0)
         ok = ahead & (width <= 40) & np.isfinite(px_b).all(1) & np.isfinite(px_t).all(1)
@@ -50,17 +49,29 @@ class PowerLine:
         spans = k - 1
         if spans < 1:
             return
-        s = np.linspace(0.0, 1.0, 12)
-        drop = np.array([0.0, 0.0, 1.0])
-        a = top[:-1, None, None, :] - 0.6 * np.arange(self.wires)[None, :, None, None] * drop  # (spans, wires, 1, 3)
-        b = top[1:, None, None, :] - 0.6 * np.arange(self.wires)[None, :, None, None] * drop
-        pts = a + s[None, None, :, None] * (b - a) - (4 * self.sag_m * s * (1 - s))[None, None, :, None] * drop
-        px, z = project(pts.reshape(-1, 3))
+        px, z = project(self._wire_points)
         px, z = px.reshape(spans * self.wires, 12, 2), z.reshape(spans * self.wires, 12)
         keep = (z > 1.0).all(axis=1) & (np.abs(px) < 1e5).all(axis=(1, 2))
         keep &= boxes_reach(px.min(axis=1) - 3.0, px.max(axis=1) + 3.0, views)
         if keep.any():
             cv2.polylines(img, list(np.round(px[keep] * 16).astype(np.int32)), False, self.colour, 1, cv2.LINE_AA, 4)
+
+    @functools.cached_property
+    def _poles(self) -> np.ndarray:
+        """The poles' feet, then their tops (2K, 3): fixed, so worked out once, not every frame."""
+        base = np.column_stack([self.poles_enu, np.zeros(len(self.poles_enu))])
+        return np.vstack([base, base + [0.0, 0.0, self.height_m]])
+
+    @functools.cached_property
+    def _wire_points(self) -> np.ndarray:
+        """The wires' points (spans * wires * 12, 3), each wire 12 points along its sagging span."""
+        top = self._poles[len(self.poles_enu):]
+        s = np.linspace(0.0, 1.0, 12)
+        drop = np.array([0.0, 0.0, 1.0])
+        a = top[:-1, None, None, :] - 0.6 * np.arange(self.wires)[None, :, None, None] * drop  # (spans, wires, 1, 3)
+        b = top[1:, None, None, :] - 0.6 * np.arange(self.wires)[None, :, None, None] * drop
+        pts = a + s[None, None, :, None] * (b - a) - (4 * self.sag_m * s * (1 - s))[None, None, :, None] * drop
+        return pts.reshape(-1, 3)
 
 
 def boxes_reach(lo: np.ndarray, hi: np.ndarray, views) -> np.ndarray:

@@ -413,12 +413,13 @@ class Renderer:
         s = 16.0  # fixed-point sub-pixel drawing (4 fractional bits)
         items = [(z, 0, k) for k, z in enumerate(zs)] + [(z, 1, k) for k, z in enumerate(zr)] + [(z, 2, k) for k, z in enumerate(zd)]
         items.sort(key=lambda it: -it[0])
+        sphere_cols, rod_cols, disc_cols = (np.clip(c * shade, 0, 255).tolist() for c in (m.sphere_col, m.rod_col, m.disc_col))
         for _, kind, k in items:
             if kind == 0:
-                col = tuple(float(c) for c in np.clip(m.sphere_col[k] * shade, 0, 255))
+                col = tuple(sphere_cols[k])
                 cv2.circle(img, (int(ps[k, 0] * s), int(ps[k, 1] * s)), max(int(rs[k] * s), 8), col, -1, cv2.LINE_AA, 4)
             elif kind == 1:
-                col = tuple(float(c) for c in np.clip(m.rod_col[k] * shade, 0, 255))
+                col = tuple(rod_cols[k])
                 cv2.line(img, (int(pa[k, 0] * s), int(pa[k, 1] * s)), (int(pb[k, 0] * s), int(pb[k, 1] * s)), col,
                          max(int(round(2 * rr[k])), 1), cv2.LINE_AA, 4)
             else:
@@ -430,7 +431,7 @@ class Renderer:
                     continue
                 roi = img[by0:by1, bx0:bx1]
                 layer = roi.copy()
-                col = tuple(float(c) for c in np.clip(m.disc_col[k] * shade, 0, 255))
+                col = tuple(disc_cols[k])
                 shifted = poly - np.array([bx0 * 16, by0 * 16], np.int32)
                 cv2.fillPoly(layer, [shifted], col, cv2.LINE_AA, 4)
                 a = float(m.disc_alpha[k])
