@@ -117,8 +117,7 @@ def _paint_fields(cell: np.ndarray, kinds: list[str], style: GroundStyle, rng: n
         r0, r1, c0, c1 = box[0].start, box[0].stop, box[1].start, box[1].stop
         side = max(r1 - r0, c1 - c0)
         patch = MATERIALS[kinds[k]](rng, int(side), rng.uniform(0, math.pi), rng.uniform(*style.dryness))
-        sub = cell[box] == k
-        img[box][sub] = patch[: r1 - r0, : c1 - c0][sub]
+        np.copyto(img[box], patch[: r1 - r0, : c1 - c0], where=(cell[box] == k)[..., None])
     return img
 
 
