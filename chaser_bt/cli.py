@@ -159,6 +159,8 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                         "survey (run takes the pose itself as a FILE)")
     p.add_argument("--no-camera", action="store_true", help="no rendered camera (trees without vision run faster)")
     p.add_argument("--camera-size", type=_size, default=(640, 480), metavar="WxH", help="rendered camera size, px (default 640x480)")
+    p.add_argument("--camera-in-process", action="store_true",
+                   help="draw the camera's frames in this process, not in a render process beside it (the same frames, slower)")
     p.add_argument("--no-telemetry", action="store_true", help="do not give the mission the intruders' own MAVLink position")
     p.add_argument("--trace", type=arg.output_file, metavar="FILE.npz", help="write the flight's per-tick trace (FlightTrace) here (default: none)")
     p.add_argument("--report", type=arg.output_dir, metavar="DIR",
@@ -341,7 +343,8 @@ def _rehearse(args: argparse.Namespace) -> int:
 
     on_tick = _tick_printer(tree, sys.stderr if args.json else sys.stdout) if args.show_ticks else None
     sensors = SensorOptions(radar=not args.no_radar, radar_pose=args.radar_pose, camera=not args.no_camera,
-                            camera_size=args.camera_size, telemetry=not args.no_telemetry)
+                            camera_size=args.camera_size, telemetry=not args.no_telemetry,
+                            render_process=not args.camera_in_process)
     hook = _recording_hook(args)
     monitor = _groot2_monitor(args, tree)
     bar = None

@@ -54,7 +54,9 @@ from sitl.bench.radar_trials import (
     simulate_flight,
     to_recording,
 )
-from sitl.world.camera.frame_source import SimTarget, SimulatorFrameSource
+from sitl.bench.lagged_camera import LaggedCamera
+from sitl.world.camera.frame_source import Shot, SimTarget, SimulatorFrameSource
+from sitl.world.camera.render_process import RenderProcess
 from sitl.world.camera.scene import GroundScene
 from sitl.world.camera.world import PLAIN_FIELD_SEED, WorldSpec, build_world, plain_ground
 from sitl.world.radar.config import RadarConfig
@@ -89,6 +91,12 @@ class SensorOptions:
         telemetry: the intruders' own MAVLink position as TargetTelemetry.
         whole_frames: render every frame whole instead of only the regions the pipeline reads
             (the reference a speed benchmark compares with; docs/vision.md, "Regions of interest").
+        camera_lag: the camera one frame behind the tick (:class:`~sitl.bench.lagged_camera.LaggedCamera`:
+            the estimate a tick reads is the last frame's, as on an aircraft whose camera pipeline
+            runs beside the control loop); False: each frame read and processed inside its tick.
+        render_process: with ``camera_lag``, draw the frames in a process of their own
+            (:class:`~sitl.world.camera.render_process.RenderProcess`), beside the tick: the same
+            frames, on a second core. Campaign workers leave it off (the runs are their parallelism).
     """
 
     radar: bool = True
@@ -98,6 +106,8 @@ class SensorOptions:
     camera_detection: bool = True
     telemetry: bool = True
     whole_frames: bool = False
+    camera_lag: bool = True
+    render_process: bool = False
 
     def __post_init__(self) -> None:
         if self.radar_pose not in RADAR_POSE_MODES:
@@ -212,11 +222,12 @@ _shipped_detector = _SharedDetector()
 
 class ScenarioFrameSource:
     """The rendered camera over a scenario: draws the targets present now (scripted targets come and
-    go). The renderer (and the shared ground) is made at the first frame, so a mission that never
-    looks pays nothing.
+    go). The world and its renderer are made at the first frame drawn here, so a mission that never
+    looks, or one whose frames a :class:`~sitl.world.camera.render_process.RenderProcess` draws,
+    pays nothing for them.
 
-    ``last_labels`` (scoring only) are the drawn targets' true boxes, each ``index`` the target's
-    position in ``targets``.
+    ``last_labels`` (scoring only) are the true boxes of the targets in the frame last drawn (or
+    :meth:`accept`-ed), each ``index`` the target's position in ``targets``.
     """
 
     def __init__(self, simulator: Any, camera_model: CameraModel, targets: list[tuple[SimTarget, Any]],
@@ -226,25 +237,38 @@ class ScenarioFrameSource:
         self.camera = camera_model
         self.targets = targets  # (target, present(t) -> bool)
         self.seed = seed
-        self.source: SimulatorFrameSource | None = None
+        self.source = SimulatorFrameSource(simulator, camera_model, [], seed, world=functools.partial(
+            build_world, world, seed, camera_model.width_px, camera_model.height_px))
         self.last_labels: tuple = ()
+        self._shown: dict[int, list[int]] = {}  # frame index -> the targets drawn in it, until developed
 
     reads_regions = True  # the renderer draws only the regions the pipeline asks for
 
     def read(self, t: float, regions: Sequence[Region] | None = None) -> Frame | None:
-        if self.source is None:
-            world = build_world(self.world, self.seed, self.camera.width_px, self.camera.height_px)
-            self.source = SimulatorFrameSource(self.simulator, self.camera, [], self.seed, world=world)
+        return self.develop(self.shot(t), regions)
+
+    def shot(self, t: float) -> Shot:
+        """The scene now, with the targets present now (:meth:`SimulatorFrameSource.shot`)."""
         now = float(self.simulator.time_s)
         shown = [k for k, (_, present) in enumerate(self.targets) if present(now)]
         self.source.targets = [self.targets[k][0] for k in shown]
-        frame = self.source.read(t, regions)
-        self.last_labels = tuple(replace(lab, index=shown[lab.index]) for lab in self.source.last_labels)
+        shot = self.source.shot(t)
+        self._shown[shot.index] = shown
+        return shot
+
+    def develop(self, shot: Shot, regions: Sequence[Region] | None = None) -> Frame:
+        """Draw ``shot`` here (shots in the order taken)."""
+        frame = self.source.develop(shot, regions)
+        self.accept(shot, self.source.last_labels)
         return frame
 
+    def accept(self, shot: Shot, labels: Sequence[Any]) -> None:
+        """``shot`` was drawn (here or elsewhere) with these labels: they become ``last_labels``."""
+        shown = self._shown.pop(shot.index)
+        self.last_labels = tuple(replace(lab, index=shown[lab.index]) for lab in labels)
+
     def close(self) -> None:
-        if self.source is not None:
-            self.source.close()
+        self.source.close()
 
 
 def _always(t: float) -> bool:
@@ -266,12 +290,15 @@ class MissionSensors:
     radar_pose: RadarPoseFix | None = None
     frame_source: ScenarioFrameSource | None = None
     radar_queue: QueueDatagramSource | None = None
+    render_process: RenderProcess | None = None
     resources: dict[str, Any] = field(default_factory=dict)
 
     def close(self) -> None:
-        """Release what the sensors hold (the frame source)."""
+        """Release what the sensors hold (the frame source, the render process)."""
         if self.frame_source is not None:
             self.frame_source.close()
+        if self.render_process is not None:
+            self.render_process.close()
 
 
 def _mission_frame(vehicle: LockStepVehicle) -> LocalFrame:
@@ -309,7 +336,13 @@ def build_sensors(vehicle: LockStepVehicle, options: SensorOptions, seed: int) -
             targets += [(SimTarget(intruder.spec.airframe, intruder), _always) for intruder in sim.intruders]
             targets += [(SimTarget(tg.kind, tg.path, k), tg.present) for k, tg in enumerate(scenario.targets)]
         out.frame_source = ScenarioFrameSource(sim, model, targets, seed, scenario.camera_world)
-        out.camera = CameraSensor(out.frame_source, VisionPipeline(model, _shipped_detector), whole_frames=options.whole_frames)
+        pipeline = VisionPipeline(model, _shipped_detector)
+        if options.camera_lag:
+            if options.render_process:  # spawned now: its world is built while the mission sets up
+                out.render_process = RenderProcess(model, scenario.camera_world, seed)
+            out.camera = LaggedCamera(out.frame_source, pipeline, whole_frames=options.whole_frames, renderer=out.render_process)
+        else:
+            out.camera = CameraSensor(out.frame_source, pipeline, whole_frames=options.whole_frames)
         out.resources["camera"] = out.camera
     if options.telemetry and sim.intruders:
         out.telemetry = vehicle.attach_target_telemetry()

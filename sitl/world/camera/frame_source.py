@@ -3,12 +3,17 @@
 Frames are rendered from ground truth (the chaser's true pose, the targets' true poses): that is
 the sensor, not a leak, and the mission only ever sees the pixels. Motion blur follows the
 ownship's rotation between frames (``exposure_s`` of it smears the image).
+
+A frame is taken in two steps: :meth:`SimulatorFrameSource.shot` notes the scene at the simulator's
+time (a :class:`Shot`: poses and blur, cheap), :meth:`SimulatorFrameSource.develop` draws it. A
+rehearsal may draw a shot later or in another process (:mod:`sitl.bench.render_process`) while the
+simulator flies on; the frame is the same.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -24,7 +29,7 @@ from sitl.world.camera.renderer import (
 from sitl.world.camera.scene import GroundScene, make_ground
 from sitl.world.camera.world import CameraWorld
 
-__all__ = ["SimTarget", "SimulatorFrameSource"]
+__all__ = ["Shot", "SimTarget", "SimulatorFrameSource"]
 
 
 @dataclass(frozen=True)
@@ -42,6 +47,23 @@ class SimTarget:
         return TargetPose(self.kind, np.asarray(self.path.position_enu(t), float), att, self.variant)
 
 
+@dataclass(frozen=True)
+class Shot:
+    """The scene at one instant, before it is drawn: what :meth:`SimulatorFrameSource.develop` needs.
+
+    ``t`` is the frame's stamp (the mission clock's), ``sim_t`` the simulator's time (it places the
+    world's birds and aircraft and the camera's drift), ``index`` the frame's number.
+    """
+
+    t: float
+    sim_t: float
+    index: int
+    position_enu: np.ndarray
+    attitude: Rotation
+    targets: tuple[TargetPose, ...]
+    blur_px: float
+
+
 class SimulatorFrameSource:
     """Renders the chaser's camera from a running simulator.
 
@@ -55,21 +77,21 @@ class SimulatorFrameSource:
         ground: a ground already made (shared between runs: making one takes a second or two);
             None makes the one of ``ground_seed``.
         world: a camera world (:mod:`sitl.world.camera.world`) to render instead: its ground, sky,
-            clutter, distractors, camera effects and lighting replace ``ground`` and ``lighting``.
+            clutter, distractors, camera effects and lighting replace ``ground`` and ``lighting``;
+            or a function making one, called at the first frame drawn (a source that only takes
+            shots, for a renderer elsewhere, never builds it).
     """
 
     def __init__(self, simulator: Any, camera_model: CameraModel, targets: Sequence[SimTarget], seed: int,
                  lighting: Lighting = Lighting(), ground_seed: int = 7, exposure_s: float = 0.01,
-                 ground: GroundScene | None = None, world: CameraWorld | None = None) -> None:
+                 ground: GroundScene | None = None, world: CameraWorld | Callable[[], CameraWorld] | None = None) -> None:
         self.simulator = simulator
         self.camera = camera_model
         self.targets = list(targets)
-        self.lighting = lighting if world is None else world.lighting
+        self.lighting = world.lighting if isinstance(world, CameraWorld) else lighting
         self.exposure_s = exposure_s
-        if world is not None:
-            self.renderer = Renderer(camera_model, world=world, noise_seed=seed)
-        else:
-            self.renderer = Renderer(camera_model, ground if ground is not None else make_ground(ground_seed), noise_seed=seed)
+        self._scene = (world, ground, ground_seed, seed)
+        self._renderer: Renderer | None = None
         self.rng = np.random.default_rng(seed)
         self._last: tuple[float, Rotation] | None = None
         self._index = 0
@@ -77,9 +99,28 @@ class SimulatorFrameSource:
 
     reads_regions = True  # see chaser_bt.vision.frame_source
 
+    @property
+    def renderer(self) -> Renderer:
+        """The renderer, made at the first frame drawn (with its world, when that is made lazily)."""
+        if self._renderer is None:
+            world, ground, ground_seed, seed = self._scene
+            if callable(world):
+                world = world()
+                self.lighting = world.lighting
+            if world is not None:
+                self._renderer = Renderer(self.camera, world=world, noise_seed=seed)
+            else:
+                self._renderer = Renderer(self.camera, ground if ground is not None else make_ground(ground_seed), noise_seed=seed)
+        return self._renderer
+
     def read(self, t: float, regions: Sequence[Region] | None = None) -> Frame | None:
         """The frame at the simulator's time, stamped ``t``; only ``regions`` drawn when given
         (:meth:`Renderer.render`)."""
+        return self.develop(self.shot(t), regions)
+
+    def shot(self, t: float) -> Shot:
+        """The scene now, stamped ``t``: the chaser's and the targets' poses and the blur of the
+        chaser's rotation since the last shot."""
         truth = self.simulator.truth
         sim_t = float(self.simulator.time_s)
         att = truth.attitude
@@ -88,12 +129,18 @@ class SimulatorFrameSource:
             rate = np.linalg.norm((att * self._last[1].inv()).as_rotvec()) / (sim_t - self._last[0])
             blur = rate * self.exposure_s * self.camera.focal_px[0]
         self._last = (sim_t, att)
-        frame = self.renderer.render(truth.pos_enu, att, [tg.pose(sim_t) for tg in self.targets], self.lighting, self.rng, blur_px=blur,
-                                     t=sim_t, regions=regions)
-        self.last_labels = frame.labels  # for scoring only
-        out = Frame(t, frame.image, self._index, frame.views)
+        out = Shot(t, sim_t, self._index, np.array(truth.pos_enu, float), att, tuple(tg.pose(sim_t) for tg in self.targets), blur)
         self._index += 1
         return out
+
+    def develop(self, shot: Shot, regions: Sequence[Region] | None = None) -> Frame:
+        """Draw ``shot`` (only ``regions`` when given); shots must be developed in the order taken
+        (the sensor noise is drawn from one stream)."""
+        renderer = self.renderer  # first: a world made now brings its lighting
+        frame = renderer.render(shot.position_enu, shot.attitude, list(shot.targets), self.lighting, self.rng,
+                                blur_px=shot.blur_px, t=shot.sim_t, regions=regions)
+        self.last_labels = frame.labels  # for scoring only
+        return Frame(shot.t, frame.image, shot.index, frame.views)
 
     def close(self) -> None:
         """Nothing to release: frames are rendered on demand."""

@@ -1,0 +1,139 @@
+"""The simulated camera drawn in a process of its own, beside the rehearsal's tick.
+
+Drawing a frame (a few milliseconds of warps, blends and JPEG, half of it Python) is the largest
+part of a camera-on rehearsal's tick. A thread cannot take it off the tick: the drawing's Python
+and the tick's take turns on the GIL (docs/vision.md, "Tenth session"). A :class:`RenderProcess`
+is a child process holding its own :class:`~sitl.world.camera.frame_source.SimulatorFrameSource`
+over the same camera world: the rehearsal takes a :class:`~sitl.world.camera.frame_source.Shot`
+(poses and blur, cheap) and submits it; the child draws it while the tick goes on; the rehearsal
+collects the frame later. The child builds its world itself (spawned, not forked: nothing of the
+parent's threads or onnxruntime sessions comes along), so the parent never pays for it.
+
+Shots are drawn in the order submitted, from the same sensor-noise stream as in-process drawing,
+so a frame drawn here is the frame drawn in the parent, byte for byte.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import os
+import time
+import traceback
+from typing import Any, Sequence
+
+import numpy as np
+
+from chaser_bt.vision.camera import CameraModel
+from chaser_bt.vision.frame_source import Region
+from sitl.world.camera.frame_source import Shot
+
+__all__ = ["DrawnFrame", "RenderProcess"]
+
+log = logging.getLogger(__name__)
+
+DrawnFrame = tuple[np.ndarray, "tuple[Region, ...] | None", tuple, float]  # image, regions drawn, labels, draw ms
+
+
+class RenderProcess:
+    """A child process drawing shots of one camera world (``build_world(world, seed, width, height)``).
+
+    Args:
+        camera: the camera model (its size is the frame size).
+        world: the scenario's :class:`~sitl.world.camera.world.WorldSpec`.
+        seed: the rehearsal's seed: the world's layout and the sensor noise.
+        timeout_s: :meth:`collect` gives up (raises) when the child has said nothing for this long.
+    """
+
+    def __init__(self, camera: CameraModel, world: Any, seed: int, timeout_s: float = 120.0) -> None:
+        ctx = multiprocessing.get_context("spawn")
+        self._conn, child = ctx.Pipe()
+        self._proc = ctx.Process(target=_serve, args=(child, camera, world, seed), name="chaser-bt-render", daemon=True)
+        self._proc.start()
+        child.close()
+        self.timeout_s = float(timeout_s)
+        self.in_flight = 0
+        self.frames = 0
+        self.draw_ms = 0.0  # the child's drawing time, summed
+        self.wait_ms = 0.0  # the parent's waiting in collect(), summed
+
+    def submit(self, shot: Shot, regions: Sequence[Region] | None) -> None:
+        """Have ``shot`` drawn (only ``regions`` when given); returns at once."""
+        self._conn.send((shot, None if regions is None else tuple(regions)))
+        self.in_flight += 1
+
+    def collect(self) -> DrawnFrame:
+        """The oldest submitted shot, drawn: (image, views, labels, draw ms); waits for it.
+
+        Raises RuntimeError when nothing is in flight, the child failed (its traceback in the
+        message) or it was silent for ``timeout_s``.
+        """
+        if self.in_flight < 1:
+            raise RuntimeError("no shot submitted to the render process")
+        t0 = time.perf_counter()
+        if not self._conn.poll(self.timeout_s):
+            raise RuntimeError(f"render process silent for {self.timeout_s:.0f} s (alive: {self._proc.is_alive()})")
+        try:
+            kind, *body = self._conn.recv()
+        except EOFError as e:
+            raise RuntimeError(f"render process ended (exit code {self._proc.exitcode})") from e
+        self.wait_ms += 1e3 * (time.perf_counter() - t0)
+        self.in_flight -= 1
+        if kind == "error":
+            raise RuntimeError(f"render process failed:\n{body[0]}")
+        image, views, labels, draw_ms = body
+        self.frames += 1
+        self.draw_ms += draw_ms
+        return image, views, labels, draw_ms
+
+    def close(self, join_timeout_s: float = 5.0) -> None:
+        """Stop the child: frames in flight are taken off the pipe (unread, the child would wait to
+        send them); killed if it does not stop in time."""
+        if self._proc.is_alive():
+            try:
+                while self.in_flight > 0 and self._conn.poll(join_timeout_s):
+                    self._conn.recv()
+                    self.in_flight -= 1
+                self._conn.send(None)
+            except (EOFError, BrokenPipeError, OSError):
+                pass
+            self._proc.join(join_timeout_s)
+            if self._proc.is_alive():
+                log.warning("render process did not stop in %.0f s: killed", join_timeout_s)
+                self._proc.kill()
+                self._proc.join(1.0)
+        self._conn.close()
+
+    def __enter__(self) -> RenderProcess:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+
+def _serve(conn: Any, camera: CameraModel, world_spec: Any, seed: int) -> None:
+    """The child: build the world, then draw each shot received until told to stop (None)."""
+    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+        os.environ[var] = "1"
+    try:
+        import cv2
+
+        cv2.setNumThreads(1)  # one core: the tick has the other
+        from sitl.world.camera.frame_source import SimulatorFrameSource
+        from sitl.world.camera.world import build_world
+
+        source = SimulatorFrameSource(None, camera, [], seed, world=build_world(world_spec, seed, camera.width_px, camera.height_px))
+        while (msg := conn.recv()) is not None:
+            shot, regions = msg
+            t0 = time.perf_counter()
+            frame = source.develop(shot, regions)
+            conn.send(("frame", frame.image, frame.regions, source.last_labels, 1e3 * (time.perf_counter() - t0)))
+    except (EOFError, KeyboardInterrupt):
+        pass  # the parent went away or is stopping: nothing to answer
+    except Exception:  # the parent raises it, with this traceback, at its next collect()
+        try:
+            conn.send(("error", traceback.format_exc()))
+        except (BrokenPipeError, OSError):
+            pass
+    finally:
+        conn.close()
