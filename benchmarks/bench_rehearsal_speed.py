@@ -1,18 +1,23 @@
 """Camera-on rehearsal speed (issue 19): the chase in its default camera world, real-time factor.
 
 Flies trees/chase.yaml on sitl/scenarios/chase.yaml (the ``any`` camera world: seed 1 is farmland)
-``--repeats`` times, each run beside a reference run in the same process: the same flight with every
-frame rendered whole (``SensorOptions(whole_frames=True)``, what a rehearsal did before regions of
-interest). The machine is shared, so the figure to compare between machines or commits is the ratio
-to that reference, measured back to back; the real-time factor is the median of the runs.
+``--repeats`` times as ``chaser-bt rehearse`` flies it: the camera a frame behind the tick, drawn in
+a render process beside it (``SensorOptions(render_process=True)``). Beside each run, in the same
+process: the same flight drawn in-process (``in_process``: what the render process buys) and a
+reference (every frame rendered whole and processed inside its tick: what a rehearsal did before
+regions of interest and the render process). The machine is shared, so the figures to compare
+between machines or commits are the ratios, measured back to back; the real-time factor is the
+median of the runs.
 
-Each run also says where a camera frame's wall time went (``parts_ms``, per frame, the region-of-interest
-runs): ``render`` (the simulator's camera), ``detector`` (the detector's calls, its box refiner
-included), ``trackers`` (the tracker bank's corrections and advances, the refiner on tracked boxes
-included) and ``frames`` / ``whole_frames`` counted; the rest of a tick is the simulator, the tree and the scoring.
+Each run also says where a camera frame's wall time went (``parts_ms``, per frame): ``render_wait``
+(the tick waiting for the render process's frame, the copy out included), ``render_child`` (the
+child's drawing), ``detector`` (the detector's calls, its box refiner included) and ``trackers``
+(the tracker bank's corrections and advances, the refiner on tracked boxes included), ``frames``
+counted; the rest of a tick is the simulator, the tree and the scoring.
 
-Prints one JSON line: {"name": "rehearsal_speed", "realtime_factor_median", "reference_realtime_factor_median",
-"speedup_vs_reference", "tick_ms_median", "parts_ms", "sim_time_s", "runs": [...], "opencv_threads", "load_avg_1m"}.
+Prints one JSON line: {"name": "rehearsal_speed", "realtime_factor_median", "in_process_realtime_factor_median",
+"speedup_render_process", "reference_realtime_factor_median", "speedup_vs_reference", "tick_ms_median",
+"parts_ms", "sim_time_s", "runs": [...], "opencv_threads", "load_avg_1m"}.
 Run: .venv/bin/python benchmarks/bench_rehearsal_speed.py [--seed 1] [--sim-s 300] [--repeats 3] [--no-reference]
 [--opencv-threads 1]
 """
@@ -49,8 +54,6 @@ class PartTimer:
             out = inner(*args, **kwargs)
             timer.ms[part] = timer.ms.get(part, 0.0) + 1e3 * (time.perf_counter() - t)
             timer.count[part] = timer.count.get(part, 0) + 1
-            if getattr(out, "views", ()) is None:  # a rendered frame drawn whole
-                timer.count["whole"] = timer.count.get("whole", 0) + 1
             return out
 
         setattr(owner, method, timed)
@@ -58,11 +61,27 @@ class PartTimer:
     def start(self) -> None:
         self.ms, self.count, self.on = {}, {}, True
 
+    def wrap_collect(self, owner: type) -> None:
+        """``RenderProcess.collect``: the wait as ``render_wait``, the child's drawing as ``render_child``."""
+        inner = owner.collect
+        timer = self
+
+        def timed(rp):
+            t = time.perf_counter()
+            out = inner(rp)
+            if timer.on:
+                timer.ms["render_wait"] = timer.ms.get("render_wait", 0.0) + 1e3 * (time.perf_counter() - t)
+                timer.ms["render_child"] = timer.ms.get("render_child", 0.0) + out[3]
+                timer.count["frames"] = timer.count.get("frames", 0) + 1
+            return out
+
+        owner.collect = timed
+
     def stop(self) -> dict:
         self.on = False
-        frames = max(self.count.get("render", 0), 1)
+        frames = max(self.count.get("frames", 0), 1)
         out = {k: round(v / frames, 2) for k, v in sorted(self.ms.items())}
-        return out | {"frames": self.count.get("render", 0), "whole_frames": self.count.get("whole", 0)}
+        return out | {"frames": self.count.get("frames", 0)}
 
 
 def _rtf(report) -> float:
@@ -89,29 +108,34 @@ def main() -> None:
     from sitl.world.scenario import load_scenario
     from chaser_bt.vision.detector.inference import Detector
     from chaser_bt.vision.trackers import TrackerBank
-    from sitl.world.camera.renderer import Renderer
+    from sitl.world.camera.render_process import RenderProcess
 
     parts = PartTimer()
-    parts.wrap(Renderer, "render", "render")
+    parts.wrap_collect(RenderProcess)
     parts.wrap(Detector, "__call__", "detector")
     parts.wrap(TrackerBank, "correct", "trackers")
     parts.wrap(TrackerBank, "advance", "trackers")
     scenario = dataclasses.replace(load_scenario(ROOT / "sitl/scenarios/chase.yaml"), time_limit_s=args.sim_s)
     tree = ROOT / "trees/chase.yaml"
     rehearse(tree, dataclasses.replace(scenario, time_limit_s=5.0), args.seed)  # loads, compiles and caches before timing
-    runs, refs = [], []
+    runs, here, refs = [], [], []
     for _ in range(args.repeats):
         parts.start()
-        r = rehearse(tree, scenario, args.seed)
+        r = rehearse(tree, scenario, args.seed, sensors=SensorOptions(render_process=True))
         runs.append({"realtime_factor": _rtf(r), "wall_time_s": r.wall_time_s, "tick_ms_median": r.tick_ms_median,
                      "outcome": r.outcome, "detection_frac": r.detection_frac, "parts_ms": parts.stop()})
+        h = rehearse(tree, scenario, args.seed, sensors=SensorOptions(render_process=False))
+        here.append({"realtime_factor": _rtf(h), "wall_time_s": h.wall_time_s, "detection_frac": h.detection_frac})
         if not args.no_reference:
-            ref = rehearse(tree, scenario, args.seed, sensors=SensorOptions(whole_frames=True))
+            ref = rehearse(tree, scenario, args.seed, sensors=SensorOptions(whole_frames=True, camera_lag=False))
             refs.append({"realtime_factor": _rtf(ref), "wall_time_s": ref.wall_time_s, "detection_frac": ref.detection_frac})
     rtf = statistics.median(r["realtime_factor"] for r in runs)
+    here_rtf = statistics.median(r["realtime_factor"] for r in here)
     out = {"name": "rehearsal_speed", "seed": args.seed, "sim_time_s": args.sim_s, "realtime_factor_median": rtf,
+           "in_process_realtime_factor_median": here_rtf, "speedup_render_process": round(rtf / here_rtf, 3),
            "tick_ms_median": statistics.median(r["tick_ms_median"] for r in runs),
-           "parts_ms": {k: statistics.median(r["parts_ms"][k] for r in runs) for k in runs[0]["parts_ms"]}, "runs": runs}
+           "parts_ms": {k: statistics.median(r["parts_ms"][k] for r in runs) for k in runs[0]["parts_ms"]},
+           "runs": runs, "in_process_runs": here}
     if refs:
         ref_rtf = statistics.median(r["realtime_factor"] for r in refs)
         out |= {"reference_realtime_factor_median": ref_rtf, "speedup_vs_reference": round(rtf / ref_rtf, 3), "reference_runs": refs}

@@ -29,8 +29,9 @@ behaviour fails with that sentence so the tree's hover-on-stale logic takes over
 Thread counts: the detector runs with one intra-op thread (``Detector(threads=1)``: torch's is
 process-wide, onnxruntime's per session, inter-op 1) and a flight sets OpenCV to one thread
 (``cv2.setNumThreads(1)``), so the processing thread uses one core and the tick loop and the MAVLink
-link keep the other (docs/vision.md). Rehearsals do not use the worker: they tick the pipeline
-inline, lock-step with the simulator, so a seed reproduces a rehearsal exactly.
+link keep the other (docs/vision.md). Rehearsals do not use the worker: their camera
+(``sitl.bench.lagged_camera.LaggedCamera``) keeps the same one-frame lag in lock-step with the
+simulator, so a seed reproduces a rehearsal exactly.
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ import logging
 import math
 import statistics
 import time
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Callable
 
@@ -27,6 +27,7 @@ import py_trees
 
 from chaser_bt.cli_args import AUTOPILOTS
 from chaser_bt.log.trace import FlightTrace
+from chaser_bt.mission.resources import required_resources
 from chaser_bt.mission.runner import MissionRunner, StatusChange
 from chaser_bt.tree import MissionTree, load_tree, reset_blackboard
 from chaser_bt.vehicle import LinkConfig, VehicleError
@@ -167,6 +168,8 @@ def rehearse(
     sim = vehicle.sim
     sensors_start = time.perf_counter()
     options = sensors or SensorOptions()
+    if options.render_process and "camera" not in required_resources(tree.root):
+        options = replace(options, render_process=False)  # no leaf looks: no process to draw for it
     try:
         mission_sensors = build_sensors(vehicle, options, seed)
     except BaseException:

@@ -10,12 +10,13 @@ A rehearsal's mission gets exactly what it would get on the field, and nothing m
   model, from a handheld-GPS/compass guess; with ``"surveyed"`` it is the truth plus a survey error
   (GPS 1.5 m horizontal, 3 m vertical, compass 0.5 deg, inclinometer 0.2 deg, 1 sigma). Radar scan
   times and the mission clock are both the simulator's boot clock, so the feed's time offset is 0.
-- **camera**: a :class:`~chaser_bt.vision.pipeline.CameraSensor` over the simulator's renderer
+- **camera**: a :class:`~sitl.bench.lagged_camera.LaggedCamera` (a frame behind the tick, as a
+  flight's camera pipeline beside its control loop) over the simulator's renderer
   (:class:`ScenarioFrameSource`) drawing the scenario's intruders (``phantom``) and scripted targets
-  present at the time (their ``kind``; the k-th in colour scheme k), read by the shipped detector.
-  The detector and the procedural ground are made once per process, at the first frame (a mission
-  without vision never loads them); the detector runs one thread (it shares two cores with the
-  simulator).
+  present at the time (their ``kind``; the k-th in colour scheme k), read by the shipped detector;
+  drawn in a :class:`~sitl.world.camera.render_process.RenderProcess` with ``render_process``.
+  The detector and the camera world are made at the first frame (a mission without vision never
+  loads them); the detector runs one thread (it shares two cores with the simulator).
 - **target telemetry**: a :class:`~chaser_bt.target_telemetry.TargetTelemetry` as the vehicle delivers it (on its link in process, on the intruders' own radio beside ArduCopter)
   (the intruders' own MAVLink positions).
 

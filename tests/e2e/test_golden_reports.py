@@ -24,6 +24,7 @@ from pathlib import Path
 import pytest
 
 from sitl.bench.rehearsal import rehearse
+from sitl.bench.sensors import SensorOptions
 from sitl.world.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -33,11 +34,12 @@ WALL_CLOCK_KEYS = ("wall_time_s", "realtime_factor", "tick_ms_median", "sensors_
 pytestmark = pytest.mark.slow
 
 
-def _report_text(tree: str, scenario: str, seed: int, time_limit_s: float | None = None) -> str:
+def _report_text(tree: str, scenario: str, seed: int, time_limit_s: float | None = None,
+                 sensors: SensorOptions | None = None) -> str:
     sc = load_scenario(ROOT / scenario)
     if time_limit_s is not None:
         sc = dataclasses.replace(sc, time_limit_s=time_limit_s)
-    report = rehearse(ROOT / tree, sc, seed=seed).to_dict()
+    report = rehearse(ROOT / tree, sc, seed=seed, sensors=sensors).to_dict()
     kept = {k: v for k, v in report.items() if k not in WALL_CLOCK_KEYS}
     return json.dumps(kept, indent=1, sort_keys=True) + "\n"
 
@@ -73,3 +75,12 @@ def test_rehearsal_report_matches_its_golden_byte_for_byte(name):
     if recording:
         path.write_text(text)
     assert text == path.read_text(), f"{name}: the rehearsal report changed; see the module docstring"
+
+
+def test_the_chase_drawn_in_a_render_process_flies_the_in_process_golden():
+    """`chaser-bt rehearse` draws the camera in a process beside the tick; the flight must not notice."""
+    path = GOLDEN / f"chase60_seed1.{cpu_isa()}.json"
+    if not path.exists():
+        pytest.skip(f"no chase golden recorded for this machine's instruction set ({cpu_isa()})")
+    text = _report_text(*CASES["chase60_seed1"], sensors=SensorOptions(render_process=True))
+    assert text == path.read_text(), "the chase drawn in a render process differs from the one drawn in-process"

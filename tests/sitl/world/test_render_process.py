@@ -1,0 +1,80 @@
+"""The camera drawn in a render process: the same frames as drawn here, failures said, clean stops."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+from mavlink_gcs import quick_scenario
+
+from chaser_bt.vision.camera import CameraModel
+from sitl.simulator import Simulator
+from sitl.world.camera.frame_source import Shot, SimTarget, SimulatorFrameSource
+from sitl.world.camera.render_process import RenderProcess
+from sitl.world.camera.world import WorldSpec, build_world
+from sitl.world.targets import WaypointPath
+
+CAM = CameraModel(width_px=320, height_px=240, tilt_rad=0.0)
+SPEC = WorldSpec(family="suburb")  # clutter, birds, specks: every part of the renderer draws
+SEED = 4
+
+
+def _shots(n: int) -> list[Shot]:
+    """Shots of a target ahead of a parked chaser, 0.1 s apart, the chaser turning as it arms."""
+    sim = Simulator(quick_scenario(), 0)
+    sim.run_until(0.5)
+    truth = sim.truth
+    ahead = truth.pos_enu + 15.0 * truth.attitude.apply([1.0, 0.0, 0.0]) * np.array([1, 1, 0]) + np.array([0.0, 0.0, 2.0])
+    path = WaypointPath((tuple(ahead), tuple(ahead + np.array([5.0, 3.0, 1.0]))), speed_mps=3.0)
+    taker = SimulatorFrameSource(sim, CAM, [SimTarget("phantom", path)], SEED)
+    shots = []
+    for k in range(n):
+        sim.run_until(0.5 + 0.1 * k)
+        shots.append(taker.shot(10.0 + 0.1 * k))
+    return shots
+
+
+def test_frames_drawn_in_the_render_process_are_the_frames_drawn_here_byte_for_byte():
+    shots = _shots(6)
+    regions = [None, ((100, 60, 220, 180),), ((0, 0, 80, 80), (200, 150, 300, 230)), None, ((120, 90, 200, 170),), None]
+    here = SimulatorFrameSource(None, CAM, [], SEED, world=build_world(SPEC, SEED, CAM.width_px, CAM.height_px))
+    expected = []
+    for shot, reg in zip(shots, regions):
+        frame = here.develop(shot, reg)
+        expected.append((frame.image, frame.regions, here.last_labels))
+    assert any(labels for _, _, labels in expected)  # the target is in some frames: labels are compared too
+    with RenderProcess(CAM, SPEC, SEED) as rp:
+        got = []
+        for k, (shot, reg) in enumerate(zip(shots, regions)):
+            rp.submit(shot, reg)  # one in flight ahead, as a rehearsal keeps it
+            if k:
+                got.append(rp.collect()[:3])
+        got.append(rp.collect()[:3])
+        assert rp.in_flight == 0 and rp.frames == len(shots) and rp.draw_ms > 0
+    for (image, views, labels), (want_image, want_views, want_labels) in zip(got, expected):
+        assert np.array_equal(image, want_image)
+        assert views == want_views and labels == want_labels
+
+
+def test_a_failure_in_the_render_process_comes_back_with_its_traceback():
+    shot = _shots(1)[0]
+    broken = Shot(shot.t, shot.sim_t, shot.index, shot.position_enu, shot.attitude,
+                  (shot.targets[0].__class__("no-such-kind", shot.targets[0].position_enu),), shot.blur_px)
+    with RenderProcess(CAM, SPEC, SEED) as rp:
+        rp.submit(broken, None)
+        with pytest.raises(RuntimeError, match="render process failed(.|\n)*no-such-kind"):
+            rp.collect()
+    with RenderProcess(CAM, SPEC, SEED) as rp, pytest.raises(RuntimeError, match="no shot submitted"):
+        rp.collect()
+
+
+def test_closing_with_a_frame_in_flight_stops_the_child_and_removes_the_frame_slots():
+    shot = _shots(1)[0]
+    rp = RenderProcess(CAM, SPEC, SEED)
+    rp.submit(shot, None)
+    path = rp._path
+    assert os.path.exists(path)
+    rp.close()
+    assert not rp._proc.is_alive() and rp._proc.exitcode == 0
+    assert not os.path.exists(path)
