@@ -313,9 +313,22 @@ def _mission_frame(vehicle: LockStepVehicle) -> LocalFrame:
 
 def build_sensors(vehicle: LockStepVehicle, options: SensorOptions, seed: int) -> MissionSensors:
     """Build the mission's sensors on ``vehicle`` (see the module docstring); ``seed`` seeds their noise."""
+    out = MissionSensors()
+    try:
+        _build(out, vehicle, options, seed)
+    except BaseException:
+        out.close()  # a render process already spawned goes with it
+        raise
+    return out
+
+
+def _build(out: MissionSensors, vehicle: LockStepVehicle, options: SensorOptions, seed: int) -> None:
     sim = vehicle.sim
     scenario = sim.scenario
-    out = MissionSensors()
+    model = CameraModel(width_px=int(options.camera_size[0]), height_px=int(options.camera_size[1]))
+    if options.camera and options.camera_lag and options.render_process:
+        # Spawned first: its imports and its world are made while the radar is calibrated here.
+        out.render_process = RenderProcess(model, scenario.camera_world, seed)
     if options.radar and scenario.radar is not None:
         cfg = scenario.radar
         if options.radar_pose == "calibrated":
@@ -330,8 +343,6 @@ def build_sensors(vehicle: LockStepVehicle, options: SensorOptions, seed: int) -
         out.radar_pose, out.radar_queue = fix, queue
         out.resources["radar"] = out.radar
     if options.camera:
-        w, h = (int(v) for v in options.camera_size)
-        model = CameraModel(width_px=w, height_px=h)
         targets: list[tuple[SimTarget, Any]] = []
         if options.camera_detection:
             targets += [(SimTarget(intruder.spec.airframe, intruder), _always) for intruder in sim.intruders]
@@ -339,8 +350,6 @@ def build_sensors(vehicle: LockStepVehicle, options: SensorOptions, seed: int) -
         out.frame_source = ScenarioFrameSource(sim, model, targets, seed, scenario.camera_world)
         pipeline = VisionPipeline(model, _shipped_detector)
         if options.camera_lag:
-            if options.render_process:  # spawned now: its world is built while the mission sets up
-                out.render_process = RenderProcess(model, scenario.camera_world, seed)
             out.camera = LaggedCamera(out.frame_source, pipeline, whole_frames=options.whole_frames, renderer=out.render_process)
         else:
             out.camera = CameraSensor(out.frame_source, pipeline, whole_frames=options.whole_frames)
@@ -348,4 +357,3 @@ def build_sensors(vehicle: LockStepVehicle, options: SensorOptions, seed: int) -
     if options.telemetry and sim.intruders:
         out.telemetry = vehicle.attach_target_telemetry()
         out.resources["target_telemetry"] = out.telemetry
-    return out

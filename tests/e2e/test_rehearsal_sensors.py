@@ -211,7 +211,7 @@ def test_camera_draws_the_scripted_targets_present_and_keeps_their_indices():
     vehicle = InProcessVehicle(sc, 1)
     sensors = build_sensors(vehicle, SensorOptions(camera_size=(320, 240)), 1)
     src = sensors.frame_source
-    assert sorted(sensors.resources) == ["camera"] and src.source is None  # nothing rendered before the first frame
+    assert sorted(sensors.resources) == ["camera"] and src.source._renderer is None  # no world built before the first frame drawn
     vehicle.run_until(lambda: vehicle.sim.time_s >= 2.0, 5.0)
     assert src.read(2.0).image.shape == (240, 320, 3)
     assert [(lab.index, lab.kind) for lab in src.last_labels] == [(0, "s1000")]
