@@ -134,7 +134,7 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     p.add_argument("--camera-size", type=_size, metavar="WxH", help="resize camera frames to this size, px (default: as captured)")
     p.add_argument("--perception", choices=("thread", "inline"), default="thread",
                    help="run the camera pipeline in its own thread beside the tick (default thread: the tick "
-                        "reads its latest estimate) or inside the tick (inline, as rehearsals do)")
+                        "reads its latest estimate) or inside the tick (inline)")
     p.add_argument("--no-telemetry", action="store_true", help="do not listen for the intruder's own MAVLink position")
     p.add_argument("--origin", type=arg.geodetic_point, metavar="LAT,LON[,ALT]",
                    help="the mission's ENU origin, deg, deg, m (default: the vehicle's home, from HOME_POSITION)")

@@ -448,7 +448,14 @@ class _RecordingFrameSource:
         self.inner, self._recorder = source, recorder
 
     def read(self, t: float) -> Any:
-        frame = self.inner.read(t)
+        return self._shown(self.inner.read(t))
+
+    def develop(self, shot: Any, regions: Any = None) -> Any:
+        """A source whose shots are developed a tick later (a rehearsal's lagged camera): the frame
+        is recorded when developed, the tick that processes it."""
+        return self._shown(self.inner.develop(shot, regions))
+
+    def _shown(self, frame: Any) -> Any:
         if frame is not None:
             self._recorder._guarded(self._recorder._record_frame)(frame)
         return frame

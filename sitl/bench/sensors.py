@@ -227,17 +227,20 @@ class ScenarioFrameSource:
     looks, or one whose frames a :class:`~sitl.world.camera.render_process.RenderProcess` draws,
     pays nothing for them.
 
-    ``last_labels`` (scoring only) are the true boxes of the targets in the frame last drawn (or
-    :meth:`accept`-ed), each ``index`` the target's position in ``targets``.
+    ``last_labels`` (scoring only) are the true boxes of the targets in the frame last developed,
+    each ``index`` the target's position in ``targets``. With a ``renderer`` (a
+    :class:`~sitl.world.camera.render_process.RenderProcess`) each shot is handed to it when taken
+    and its frame collected when developed; the frames are the same.
     """
 
     def __init__(self, simulator: Any, camera_model: CameraModel, targets: list[tuple[SimTarget, Any]],
-                 seed: int, world: WorldSpec = WorldSpec()) -> None:
+                 seed: int, world: WorldSpec = WorldSpec(), renderer: RenderProcess | None = None) -> None:
         self.simulator = simulator
         self.world = world
         self.camera = camera_model
         self.targets = targets  # (target, present(t) -> bool)
         self.seed = seed
+        self.renderer = renderer
         self.source = SimulatorFrameSource(simulator, camera_model, [], seed, world=functools.partial(
             build_world, world, seed, camera_model.width_px, camera_model.height_px))
         self.last_labels: tuple = ()
@@ -246,30 +249,37 @@ class ScenarioFrameSource:
     reads_regions = True  # the renderer draws only the regions the pipeline asks for
 
     def read(self, t: float, regions: Sequence[Region] | None = None) -> Frame | None:
-        return self.develop(self.shot(t), regions)
+        return self.develop(self.shot(t, regions), regions)
 
-    def shot(self, t: float) -> Shot:
-        """The scene now, with the targets present now (:meth:`SimulatorFrameSource.shot`)."""
+    def shot(self, t: float, regions: Sequence[Region] | None = None) -> Shot:
+        """The scene now, with the targets present now (:meth:`SimulatorFrameSource.shot`); a
+        renderer starts drawing its ``regions`` at once."""
         now = float(self.simulator.time_s)
         shown = [k for k, (_, present) in enumerate(self.targets) if present(now)]
         self.source.targets = [self.targets[k][0] for k in shown]
         shot = self.source.shot(t)
         self._shown[shot.index] = shown
+        if self.renderer is not None:
+            self.renderer.submit(shot, regions)
         return shot
 
     def develop(self, shot: Shot, regions: Sequence[Region] | None = None) -> Frame:
-        """Draw ``shot`` here (shots in the order taken)."""
-        frame = self.source.develop(shot, regions)
-        self.accept(shot, self.source.last_labels)
-        return frame
-
-    def accept(self, shot: Shot, labels: Sequence[Any]) -> None:
-        """``shot`` was drawn (here or elsewhere) with these labels: they become ``last_labels``."""
+        """``shot`` drawn (shots in the order taken): here, or collected from the renderer (which
+        draws the regions given to :meth:`shot`)."""
+        if self.renderer is None:
+            frame = self.source.develop(shot, regions)
+            labels = self.source.last_labels
+        else:
+            image, drawn, labels, _ = self.renderer.collect()
+            frame = Frame(shot.t, image, shot.index, drawn)
         shown = self._shown.pop(shot.index)
         self.last_labels = tuple(replace(lab, index=shown[lab.index]) for lab in labels)
+        return frame
 
     def close(self) -> None:
         self.source.close()
+        if self.renderer is not None:
+            self.renderer.close()
 
 
 def _always(t: float) -> bool:
@@ -295,10 +305,10 @@ class MissionSensors:
     resources: dict[str, Any] = field(default_factory=dict)
 
     def close(self) -> None:
-        """Release what the sensors hold (the frame source, the render process)."""
+        """Release what the sensors hold (the frame source and its render process)."""
         if self.frame_source is not None:
             self.frame_source.close()
-        if self.render_process is not None:
+        elif self.render_process is not None:  # spawned, then the build failed before the camera
             self.render_process.close()
 
 
@@ -347,10 +357,10 @@ def _build(out: MissionSensors, vehicle: LockStepVehicle, options: SensorOptions
         if options.camera_detection:
             targets += [(SimTarget(intruder.spec.airframe, intruder), _always) for intruder in sim.intruders]
             targets += [(SimTarget(tg.kind, tg.path, k), tg.present) for k, tg in enumerate(scenario.targets)]
-        out.frame_source = ScenarioFrameSource(sim, model, targets, seed, scenario.camera_world)
+        out.frame_source = ScenarioFrameSource(sim, model, targets, seed, scenario.camera_world, out.render_process)
         pipeline = VisionPipeline(model, _shipped_detector)
         if options.camera_lag:
-            out.camera = LaggedCamera(out.frame_source, pipeline, whole_frames=options.whole_frames, renderer=out.render_process)
+            out.camera = LaggedCamera(out.frame_source, pipeline, whole_frames=options.whole_frames)
         else:
             out.camera = CameraSensor(out.frame_source, pipeline, whole_frames=options.whole_frames)
         out.resources["camera"] = out.camera

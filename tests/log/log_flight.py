@@ -95,7 +95,10 @@ def fly(path: Path | None, seed: int = 3, *, time_limit_s: float = 120.0, pace: 
     if vision:
         from sitl.bench.sensors import SensorOptions, build_sensors
 
-        resources = build_sensors(v, SensorOptions(radar=False, telemetry=False, camera_size=(320, 240)), seed).resources
+        # The camera inside the tick, as on a flight flown inline: a replay processes each recorded
+        # frame in the tick that logged it (a rehearsal's lagged camera replays close, not exactly).
+        options = SensorOptions(radar=False, telemetry=False, camera_size=(320, 240), camera_lag=False)
+        resources = build_sensors(v, options, seed).resources
     runner = MissionRunner(tree, v.link, v.clock, resources=resources)
     runner.setup()
     recorder = attach_recorder(runner, v.link, runner.resources, path, **record) if path is not None or record else None

@@ -18,6 +18,7 @@ import py_trees
 import pytest
 from log_flight import fly
 from mcap.reader import make_reader
+from scipy.spatial.transform import Rotation
 
 from chaser_bt.clock import ManualClock
 from chaser_bt.log import schemas as S
@@ -30,6 +31,7 @@ from chaser_bt.tree import load_tree_text
 from chaser_bt.vehicle import VehicleLink
 from chaser_bt.vehicle.pipe import byte_pipe
 from chaser_bt.vision.frame_source import Frame
+from chaser_bt.vision.pipeline import OwnshipPose
 
 HERE = Path(__file__).resolve().parent
 FLIGHT_TOPICS = {S.TOPIC_MAVLINK_READ, S.TOPIC_MAVLINK_IN, S.TOPIC_MAVLINK_OUT, S.TOPIC_TREE, S.TOPIC_BLACKBOARD,
@@ -140,6 +142,51 @@ def test_belief_and_camera_frames_are_recorded_for_foxglove(tmp_path):
     belief = flight_trace(log).beliefs[0]
     assert np.allclose(belief.mass, p.sum(axis=2))
     assert np.allclose(belief.x_m, [-10.0, 0.0, 10.0]) and np.allclose(belief.y_m, [0.0, 10.0])
+
+
+def test_a_lagged_camera_is_recorded_frame_by_frame_as_its_shots_are_developed(tmp_path):
+    """A rehearsal's camera develops each shot a tick later: each frame is recorded once, whole, with its box."""
+    from sitl.bench.lagged_camera import LaggedCamera
+
+    shots: list = []
+
+    class Source:
+        reads_regions = True  # the recorder's wrapper reads whole frames: the shots must come whole
+
+        def shot(self, t, regions=None):
+            shots.append(regions)
+            return t
+
+        def develop(self, shot, regions=None):
+            return Frame(shot, np.full((24, 32, 3), int(shot * 100), np.uint8), int(round(shot * 10)))
+
+    class Pipeline:
+        track = type("T", (), {"box": (1.0, 2.0, 5.0, 6.0)})()
+
+        def plan(self, t, ownship, cue):
+            raise AssertionError("a whole-frame source is not planned for at the shot")
+
+        def process(self, frame, ownship, target_range_m, cue, plan):
+            return None
+
+    _, ground = byte_pipe()
+    clock = ManualClock(0.0)
+    link = VehicleLink.over_pipe(ground, monotonic=clock.now)
+    runner = MissionRunner(load_tree_text("version: 1\ntrees:\n  T: {Wait: {duration_s: 100}}\n", source="<t>"), link, clock)
+    camera = LaggedCamera(Source(), Pipeline())
+    runner.setup()
+    recorder = attach_recorder(runner, link, {"camera": camera}, tmp_path / "lag.mcap", frame_format="png", frame_period_s=0.0)
+    pose = OwnshipPose(0.0, np.zeros(3), np.zeros(3), Rotation.identity())
+    for k in range(4):
+        clock.set(1.0 + 0.1 * k)
+        camera.step(clock.now(), pose)
+        runner.tick()
+    recorder.close()
+    log = read_log(tmp_path / "lag.mcap")
+    images = [cv2.imdecode(np.frombuffer(log.decode(m).data, np.uint8), cv2.IMREAD_COLOR) for m in log.topic(S.TOPIC_CAMERA)]
+    assert shots == [None] * 4
+    assert [int(i[0, 0, 0]) for i in images] == [100, 110, 120]  # frames 1.0, 1.1, 1.2: the last is still in flight
+    assert len(log.topic(S.TOPIC_CAMERA_BOXES)) == 3
 
 
 def test_a_threaded_camera_is_recorded_from_its_results_on_the_ticks_thread(tmp_path):

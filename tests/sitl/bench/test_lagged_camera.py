@@ -20,8 +20,8 @@ class _Source:
         self.log = log
         self.index = 0
 
-    def shot(self, t: float) -> Shot:
-        self.log.append(("shot", t))
+    def shot(self, t: float, regions=None) -> Shot:
+        self.log.append(("shot", t, regions))
         self.index += 1
         return Shot(t, t, self.index - 1, np.zeros(3), Rotation.identity(), (), 0.0)
 
@@ -29,8 +29,6 @@ class _Source:
         self.log.append(("develop", shot.t, regions))
         return Frame(shot.t, np.zeros((4, 4, 3), np.uint8), shot.index, regions)
 
-    def accept(self, shot: Shot, labels) -> None:
-        self.log.append(("accept", shot.t, labels))
 
 
 class _Plan:
@@ -62,12 +60,12 @@ def test_each_step_plans_and_shoots_its_frame_then_processes_the_last_one_with_t
     log: list = []
     cam = LaggedCamera(_Source(log), _Pipeline(log))
     assert cam.step(0.0, _pose(0.0), 30.0, "cue0") is None  # nothing shot before: nothing to process
-    assert log == [("plan", 0.0), ("shot", 0.0)] and cam.last_frame is None
+    assert log == [("plan", 0.0), ("shot", 0.0, ((0, 0, 2, 2),))] and cam.last_frame is None
     log.clear()
     assert cam.step(0.1, _pose(0.1), 31.0, "cue1") == "estimate of 0.0"
     # Frame 0.1 is planned (from the tracks frame 0.0 has not changed yet) and shot before frame 0.0
     # is drawn and processed, with the inputs and the plan of its own tick.
-    assert log == [("plan", 0.1), ("shot", 0.1), ("develop", 0.0, ((0, 0, 2, 2),)),
+    assert log == [("plan", 0.1), ("shot", 0.1, ((0, 0, 2, 2),)), ("develop", 0.0, ((0, 0, 2, 2),)),
                    ("process", 0.0, 0.0, 30.0, "cue0", 0.0)]
     assert cam.last_frame.t == 0.0 and cam.last_frame.index == 0
 
@@ -87,33 +85,18 @@ def test_whole_frames_are_shot_without_a_plan_and_planned_when_processed():
     cam = LaggedCamera(_Source(log), _Pipeline(log), whole_frames=True)
     cam.step(0.0, _pose(0.0))
     cam.step(0.1, _pose(0.1))
-    assert log == [("shot", 0.0), ("shot", 0.1), ("develop", 0.0, None), ("process", 0.0, 0.0, None, None, None)]
+    assert log == [("shot", 0.0, None), ("shot", 0.1, None), ("develop", 0.0, None), ("process", 0.0, 0.0, None, None, None)]
 
 
-class _Renderer:
-    """A render process stand-in: draws what is submitted, in order, when collected."""
+class _WholeFrames(_Source):
+    """A source that reads out whole frames only (the flight recorder's)."""
 
-    def __init__(self, source: _Source) -> None:
-        self.source, self.queue = source, []
-
-    def submit(self, shot, regions) -> None:
-        self.source.log.append(("submit", shot.t))
-        self.queue.append((shot, regions))
-
-    def collect(self):
-        shot, regions = self.queue.pop(0)
-        return np.ones((4, 4, 3), np.uint8), regions, ("label",), 1.0
+    reads_regions = False
 
 
-def test_with_a_render_process_each_shot_is_submitted_at_once_and_its_frame_collected_a_step_later():
+def test_a_source_that_reads_whole_frames_gets_whole_shots_and_plans_made_when_processed():
     log: list = []
-    source = _Source(log)
-    cam = LaggedCamera(source, _Pipeline(log), renderer=_Renderer(source))
+    cam = LaggedCamera(_WholeFrames(log), _Pipeline(log))
     cam.step(0.0, _pose(0.0))
-    assert log == [("plan", 0.0), ("shot", 0.0), ("submit", 0.0)]
-    log.clear()
-    assert cam.step(0.1, _pose(0.1)) == "estimate of 0.0"
-    # The labels drawn with frame 0.0 reach the source (the scorer reads them there).
-    assert log == [("plan", 0.1), ("shot", 0.1), ("submit", 0.1), ("accept", 0.0, ("label",)),
-                   ("process", 0.0, 0.0, None, None, 0.0)]
-    assert cam.last_frame.image.max() == 1 and cam.last_frame.regions == ((0, 0, 2, 2),)
+    cam.step(0.1, _pose(0.1))
+    assert log == [("shot", 0.0, None), ("shot", 0.1, None), ("develop", 0.0, None), ("process", 0.0, 0.0, None, None, None)]
