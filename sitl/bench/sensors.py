@@ -48,6 +48,7 @@ from chaser_bt.target_telemetry import TargetTelemetry
 from chaser_bt.vision.camera import CameraModel
 from chaser_bt.vision.frame_source import Frame, Region
 from chaser_bt.vision.pipeline import CameraSensor, VisionPipeline
+from sitl.bench.lagged_camera import LaggedCamera
 from sitl.bench.radar_trials import (
     FIELD,
     OWNSHIP,
@@ -55,7 +56,6 @@ from sitl.bench.radar_trials import (
     simulate_flight,
     to_recording,
 )
-from sitl.bench.lagged_camera import LaggedCamera
 from sitl.world.camera.frame_source import Shot, SimTarget, SimulatorFrameSource
 from sitl.world.camera.render_process import RenderProcess
 from sitl.world.camera.scene import GroundScene

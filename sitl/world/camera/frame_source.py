@@ -6,7 +6,7 @@ ownship's rotation between frames (``exposure_s`` of it smears the image).
 
 A frame is taken in two steps: :meth:`SimulatorFrameSource.shot` notes the scene at the simulator's
 time (a :class:`Shot`: poses and blur, cheap), :meth:`SimulatorFrameSource.develop` draws it. A
-rehearsal may draw a shot later or in another process (:mod:`sitl.bench.render_process`) while the
+rehearsal may draw a shot later or in another process (:mod:`sitl.world.camera.render_process`) while the
 simulator flies on; the frame is the same.
 """
 

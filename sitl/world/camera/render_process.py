@@ -69,7 +69,10 @@ class RenderProcess:
         self.wait_ms = 0.0  # the parent's waiting in collect(), summed
 
     def submit(self, shot: Shot, regions: Sequence[Region] | None) -> None:
-        """Have ``shot`` drawn (only ``regions`` when given); returns at once."""
+        """Have ``shot`` drawn (only ``regions`` when given); returns at once. At most two shots may
+        be in flight: a third would be drawn into the slot of a frame not collected yet."""
+        if self.in_flight >= _SLOTS:
+            raise RuntimeError(f"{self.in_flight} shots already in flight: collect one first")
         self._conn.send((shot, None if regions is None else tuple(regions)))
         self.in_flight += 1
 

@@ -69,6 +69,18 @@ def test_a_failure_in_the_render_process_comes_back_with_its_traceback():
         rp.collect()
 
 
+def test_a_third_shot_in_flight_is_refused_before_it_could_overwrite_a_frame_not_collected():
+    a, b, c = _shots(3)
+    with RenderProcess(CAM, SPEC, SEED) as rp:
+        rp.submit(a, None)
+        rp.submit(b, None)
+        with pytest.raises(RuntimeError, match="2 shots already in flight"):
+            rp.submit(c, None)
+        first = rp.collect()[0]
+        rp.submit(c, None)  # a slot is free again
+        assert rp.in_flight == 2 and first.shape == (CAM.height_px, CAM.width_px, 3)
+
+
 def test_closing_with_a_frame_in_flight_stops_the_child_and_removes_the_frame_slots():
     shot = _shots(1)[0]
     rp = RenderProcess(CAM, SPEC, SEED)
