@@ -43,8 +43,7 @@ class _Taken:
     """A frame shot, not processed yet, with the tick's inputs."""
 
     shot: Any
-    regions: tuple[Region, ...] | None
-    plan: FramePlan | None
+    plan: FramePlan | None  # None: a whole shot, planned when processed
     ownship: OwnshipPose
     target_range_m: float | None
     cue: TargetCue | None
@@ -69,12 +68,11 @@ class LaggedCamera(CameraSensor):
         plan = None
         if not self.whole_frames and reads_regions(source):
             plan = self.pipeline.plan(t, ownship, cue)
-        regions = None if plan is None else plan.regions
-        shot = source.shot(t, regions)
-        done, self._taken = self._taken, _Taken(shot, regions, plan, ownship, target_range_m, cue)
+        shot = source.shot(t, None if plan is None else plan.regions)
+        done, self._taken = self._taken, _Taken(shot, plan, ownship, target_range_m, cue)
         if done is None:
             return None
-        frame = source.develop(done.shot, done.regions)
+        frame = source.develop(done.shot, None if done.plan is None else done.plan.regions)
         self.last_frame = frame
         est = self.pipeline.process(frame, done.ownship, done.target_range_m, done.cue, done.plan)
         return est if t - frame.t <= self.stale_after_s else None

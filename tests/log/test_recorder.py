@@ -190,8 +190,6 @@ def test_a_lagged_camera_is_recorded_frame_by_frame_as_its_shots_are_developed(t
 
 
 def test_a_threaded_camera_is_recorded_from_its_results_on_the_ticks_thread(tmp_path):
-    from scipy.spatial.transform import Rotation
-
     from chaser_bt.clock import WallClock
     from chaser_bt.vision.camera import CameraModel
     from chaser_bt.vision.detection import Detection

@@ -64,9 +64,6 @@ class RenderProcess:
         child.close()
         self.timeout_s = float(timeout_s)
         self.in_flight = 0
-        self.frames = 0
-        self.draw_ms = 0.0  # the child's drawing time, summed
-        self.wait_ms = 0.0  # the parent's waiting in collect(), summed
 
     def submit(self, shot: Shot, regions: Sequence[Region] | None) -> None:
         """Have ``shot`` drawn (only ``regions`` when given); returns at once. At most two shots may
@@ -84,20 +81,16 @@ class RenderProcess:
         """
         if self.in_flight < 1:
             raise RuntimeError("no shot submitted to the render process")
-        t0 = time.perf_counter()
         if not self._conn.poll(self.timeout_s):
             raise RuntimeError(f"render process silent for {self.timeout_s:.0f} s (alive: {self._proc.is_alive()})")
         try:
             kind, *body = self._conn.recv()
         except EOFError as e:
             raise RuntimeError(f"render process ended (exit code {self._proc.exitcode})") from e
-        self.wait_ms += 1e3 * (time.perf_counter() - t0)
         self.in_flight -= 1
         if kind == "error":
             raise RuntimeError(f"render process failed:\n{body[0]}")
         slot, regions, labels, draw_ms = body
-        self.frames += 1
-        self.draw_ms += draw_ms
         return np.array(self._slots[slot]), regions, labels, draw_ms
 
     def close(self, join_timeout_s: float = 5.0) -> None:
