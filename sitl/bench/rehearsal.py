@@ -80,7 +80,7 @@ class RehearsalReport:
     radar_pose: str | None = None  # calibrated | surveyed
     radar_pose_err_m: float | None = None  # mission's radar position minus the truth
     radar_yaw_err_deg: float | None = None
-    sensors_wall_s: float = 0.0  # building the sensors (calibration, detector load), not in wall_time_s
+    sensors_wall_s: float = 0.0  # setting the sensors up (radar calibration, detector load, the camera's world), not in wall_time_s
     sar_found: bool | None = None  # search and rescue: the mission's last find lies within 10 m of a person
     sar_find_error_m: float | None = None  # ... its distance to the nearest person
     sar_t_find_s: float | None = None  # ... mission time of the first find
@@ -168,11 +168,17 @@ def rehearse(
     sim = vehicle.sim
     sensors_start = time.perf_counter()
     options = sensors or SensorOptions()
-    if options.render_process and "camera" not in required_resources(tree.root):
+    looks = "camera" in required_resources(tree.root)
+    if options.render_process and not looks:
         options = replace(options, render_process=False)  # no leaf looks: no process to draw for it
+    mission_sensors = None
     try:
         mission_sensors = build_sensors(vehicle, options, seed)
+        if looks and mission_sensors.frame_source is not None:
+            mission_sensors.frame_source.prepare()  # the camera's world is set-up, like the radar's calibration
     except BaseException:
+        if mission_sensors is not None:
+            mission_sensors.close()
         vehicle.close()
         raise
     sensors_wall = time.perf_counter() - sensors_start

@@ -263,6 +263,15 @@ class ScenarioFrameSource:
             self.renderer.submit(shot, regions)
         return shot
 
+    def prepare(self) -> None:
+        """Have the camera world built now, not at the first frame: here, or by the renderer
+        (waiting until it is). A rehearsal does this while it sets the sensors up, so the flight's
+        wall time is the flight's."""
+        if self.renderer is None:
+            self.source.renderer  # noqa: B018 -- builds the world and its renderer
+        else:
+            self.renderer.wait_ready()
+
     def develop(self, shot: Shot, regions: Sequence[Region] | None = None) -> Frame:
         """``shot`` drawn (shots in the order taken): here, or collected from the renderer (which
         draws the regions given to :meth:`shot`)."""

@@ -91,3 +91,27 @@ def test_closing_with_a_frame_in_flight_stops_the_child_and_removes_the_frame_sl
     rp.close()
     assert not rp._proc.is_alive() and rp._proc.exitcode == 0
     assert not os.path.exists(path)
+
+
+def test_the_child_says_when_its_world_is_built_and_a_world_it_cannot_build_is_said_at_once():
+    with RenderProcess(CAM, SPEC, SEED) as rp:
+        took = rp.wait_ready()
+        assert took > 0 and rp.wait_ready() == took  # heard once, remembered
+        rp.submit(_shots(1)[0], None)
+        assert rp.collect()[0].shape == (CAM.height_px, CAM.width_px, 3)
+    with RenderProcess(CAM, WorldSpec(family="no-such-family"), SEED) as rp:
+        with pytest.raises(RuntimeError, match="render process failed(.|\n)*no-such-family"):
+            rp.wait_ready()
+
+
+def test_the_child_is_started_without_numpy_huge_pages_and_the_parent_environment_is_left_alone(monkeypatch):
+    monkeypatch.delenv("NUMPY_MADVISE_HUGEPAGE", raising=False)
+    with RenderProcess(CAM, SPEC, SEED) as rp:
+        rp.wait_ready()  # exec'd by now: before, /proc shows the parent's environment as it started
+        environ = f"/proc/{rp._proc.pid}/environ"
+        if not os.path.exists(environ):
+            pytest.skip("no /proc here to read the child's environment from")
+        with open(environ, "rb") as f:
+            child_env = f.read().split(b"\0")
+    assert b"NUMPY_MADVISE_HUGEPAGE=0" in child_env
+    assert "NUMPY_MADVISE_HUGEPAGE" not in os.environ
