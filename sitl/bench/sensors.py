@@ -15,8 +15,10 @@ A rehearsal's mission gets exactly what it would get on the field, and nothing m
   (:class:`ScenarioFrameSource`) drawing the scenario's intruders (``phantom``) and scripted targets
   present at the time (their ``kind``; the k-th in colour scheme k), read by the shipped detector;
   drawn in a :class:`~sitl.world.camera.render_process.RenderProcess` with ``render_process``.
-  The detector and the camera world are made at the first frame (a mission without vision never
-  loads them); the detector runs one thread (it shares two cores with the simulator).
+  The detector is loaded at the first frame; the camera world is built (or waited for) by
+  :meth:`ScenarioFrameSource.prepare`, which a rehearsal calls while it sets the sensors up when its
+  tree has a camera leaf (a mission without vision never pays for either). The detector runs one
+  thread (it shares two cores with the simulator).
 - **target telemetry**: a :class:`~chaser_bt.target_telemetry.TargetTelemetry` as the vehicle delivers it (on its link in process, on the intruders' own radio beside ArduCopter)
   (the intruders' own MAVLink positions).
 
@@ -223,9 +225,9 @@ _shipped_detector = _SharedDetector()
 
 class ScenarioFrameSource:
     """The rendered camera over a scenario: draws the targets present now (scripted targets come and
-    go). The world and its renderer are made at the first frame drawn here, so a mission that never
-    looks, or one whose frames a :class:`~sitl.world.camera.render_process.RenderProcess` draws,
-    pays nothing for them.
+    go). The world and its renderer are made by :meth:`prepare` or at the first frame drawn here, so
+    a mission that never looks, or one whose frames a
+    :class:`~sitl.world.camera.render_process.RenderProcess` draws, pays nothing for them here.
 
     ``last_labels`` (scoring only) are the true boxes of the targets in the frame last developed,
     each ``index`` the target's position in ``targets``. With a ``renderer`` (a
