@@ -3,6 +3,7 @@ way a real flight does (never the truth), and the report carries the DESIGN §7 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -19,6 +20,7 @@ from sitl.bench.in_process import InProcessVehicle
 from sitl.bench.rehearsal import rehearse
 from sitl.bench.sensors import (
     SURVEY_SIGMA,
+    ScenarioFrameSource,
     SensorOptions,
     build_sensors,
     calibrated_radar_pose,
@@ -221,3 +223,28 @@ def test_camera_draws_the_scripted_targets_present_and_keeps_their_indices():
     blind = build_sensors(InProcessVehicle(sc, 1), SensorOptions(camera_detection=False, camera_size=(320, 240)), 1)
     blind.frame_source.read(0.0)
     assert blind.frame_source.last_labels == ()
+
+
+def test_the_camera_world_is_built_while_the_sensors_are_set_up_and_only_for_a_tree_that_looks(monkeypatch):
+    calls: list[str] = []
+    prepare, develop = ScenarioFrameSource.prepare, ScenarioFrameSource.develop
+
+    def spy_prepare(self):
+        calls.append(f"prepare:{self.source._renderer is None}")
+        prepare(self)
+        calls.append(f"built:{self.source._renderer is not None}")
+
+    def spy_develop(self, shot, regions=None):
+        calls.append("develop")
+        return develop(self, shot, regions)
+
+    monkeypatch.setattr(ScenarioFrameSource, "prepare", spy_prepare)
+    monkeypatch.setattr(ScenarioFrameSource, "develop", spy_develop)
+    short = dataclasses.replace(load_scenario(CHASE), time_limit_s=15.0)  # airborne, then looking
+    report = rehearse(ROOT / "trees" / "chase.yaml", short, 1, sensors=SensorOptions(camera_size=(320, 240)))
+    assert calls[:2] == ["prepare:True", "built:True"] and calls.count("prepare:True") == 1
+    assert calls[2:] and set(calls[2:]) == {"develop"}  # frames drawn only after the world was there
+    assert report.sensors_wall_s > 0.0
+    calls.clear()
+    rehearse(ROOT / "trees" / "takeoff_land.yaml", short, 1, sensors=SensorOptions(camera_size=(320, 240)))
+    assert calls == []  # no camera leaf: no world, no frame

@@ -7,7 +7,9 @@ is a child process holding its own :class:`~sitl.world.camera.frame_source.Simul
 over the same camera world: the rehearsal takes a :class:`~sitl.world.camera.frame_source.Shot`
 (poses and blur, cheap) and submits it; the child draws it while the tick goes on; the rehearsal
 collects the frame later. The child builds its world itself (spawned, not forked: nothing of the
-parent's threads or onnxruntime sessions comes along), so the parent never pays for it.
+parent's threads or onnxruntime sessions comes along), so the parent never pays for it, and says
+when it has (:meth:`RenderProcess.wait_ready`): a rehearsal waits for that while it sets its
+sensors up, not at its first frame.
 
 Shots are drawn in the order submitted, from the same sensor-noise stream as in-process drawing,
 so a frame drawn here is the frame drawn in the parent, byte for byte. The pixels come back through
