@@ -238,10 +238,8 @@ class ScenarioFrameSource:
     def __init__(self, simulator: Any, camera_model: CameraModel, targets: list[tuple[SimTarget, Any]],
                  seed: int, world: WorldSpec = WorldSpec(), renderer: RenderProcess | None = None) -> None:
         self.simulator = simulator
-        self.world = world
         self.camera = camera_model
         self.targets = targets  # (target, present(t) -> bool)
-        self.seed = seed
         self.renderer = renderer
         self.source = SimulatorFrameSource(simulator, camera_model, [], seed, world=functools.partial(
             build_world, world, seed, camera_model.width_px, camera_model.height_px))

@@ -39,11 +39,14 @@ __all__ = ["DrawnFrame", "RenderProcess"]
 
 log = logging.getLogger(__name__)
 
-#: Set in the child's environment unless the parent's sets them. numpy asks the kernel for huge
-#: pages for arrays of 4 MiB and more; where transparent huge pages are ``madvise`` (this machine),
-#: faulting them in (compaction included) made the child's world build 1.18 s against 0.81 s without
-#: (cold builds of seed 1's farmland, four interleaved pairs); drawing frames gained nothing from them.
-_CHILD_ENV = {"NUMPY_MADVISE_HUGEPAGE": "0"}
+#: The child's environment over the parent's, in place before its numpy and BLAS load:
+#: - one BLAS/OpenMP thread: the child has one core, the tick the other;
+#: - no huge pages for numpy's arrays of 4 MiB and more: where transparent huge pages are ``madvise``
+#:   (the development machine), faulting them in (compaction included) made the child's world build
+#:   1.18 s against 0.81 s without (cold builds of seed 1's farmland, four interleaved pairs); drawing
+#:   frames gained nothing from them.
+_CHILD_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
+              "NUMPY_MADVISE_HUGEPAGE": "0"}
 
 DrawnFrame = tuple[np.ndarray, "tuple[Region, ...] | None", tuple, float]  # image, regions drawn, labels, draw ms
 _SLOTS = 2  # frame k is drawn into slot k % 2 while the parent copies frame k-1 out of the other
@@ -122,15 +125,13 @@ class RenderProcess:
         """Stop the child: frames in flight are taken off the pipe (unread, the child would wait to
         send them); killed if it does not stop in time."""
         if self._proc.is_alive():
-            try:
+            with contextlib.suppress(EOFError, BrokenPipeError, OSError):  # the child already gone
                 unread = self.in_flight + (self.world_s is None)  # the frames, and "ready" if not heard
                 while unread > 0 and self._conn.poll(join_timeout_s):
                     self._conn.recv()
                     unread -= 1
                 self.in_flight = 0
                 self._conn.send(None)
-            except (EOFError, BrokenPipeError, OSError):
-                pass
             self._proc.join(join_timeout_s)
             if self._proc.is_alive():
                 log.warning("render process did not stop in %.0f s: killed", join_timeout_s)
@@ -150,20 +151,22 @@ class RenderProcess:
 
 @contextlib.contextmanager
 def _environment(values: dict[str, str]) -> Iterator[None]:
-    """``values`` in ``os.environ`` (where not set already) for the block: a spawned child inherits them."""
-    added = {k: v for k, v in values.items() if k not in os.environ}
-    os.environ.update(added)
+    """``values`` in ``os.environ`` for the block (a child spawned in it inherits them); the parent's
+    own values back after."""
+    before = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
     try:
         yield
     finally:
-        for k in added:
-            os.environ.pop(k, None)
+        for k, v in before.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
 
 
 def _serve(conn: Any, camera: CameraModel, world_spec: Any, seed: int, path: str, shape: tuple[int, ...]) -> None:
     """The child: build the world, then draw each shot received into its slot until told to stop (None)."""
-    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
-        os.environ[var] = "1"
     try:
         import cv2
 
@@ -183,11 +186,9 @@ def _serve(conn: Any, camera: CameraModel, world_spec: Any, seed: int, path: str
             slots[slot] = frame.image
             conn.send(("frame", slot, frame.regions, source.last_labels, 1e3 * (time.perf_counter() - t0)))
     except (EOFError, KeyboardInterrupt):
-        pass  # the parent went away or is stopping: nothing to answer
+        return  # the parent went away or is stopping: nothing to answer
     except Exception:  # the parent raises it, with this traceback, at its next collect()
-        try:
+        with contextlib.suppress(BrokenPipeError, OSError):  # unless it is gone
             conn.send(("error", traceback.format_exc()))
-        except (BrokenPipeError, OSError):
-            pass
     finally:
         conn.close()

@@ -104,8 +104,9 @@ def test_the_child_says_when_its_world_is_built_and_a_world_it_cannot_build_is_s
             rp.wait_ready()
 
 
-def test_the_child_is_started_without_numpy_huge_pages_and_the_parent_environment_is_left_alone(monkeypatch):
+def test_the_child_starts_on_one_thread_without_numpy_huge_pages_and_the_parent_environment_is_left_alone(monkeypatch):
     monkeypatch.delenv("NUMPY_MADVISE_HUGEPAGE", raising=False)
+    monkeypatch.setenv("OMP_NUM_THREADS", "2")  # the parent's own setting: the child overrides it, the parent keeps it
     with RenderProcess(CAM, SPEC, SEED) as rp:
         rp.wait_ready()  # exec'd by now: before, /proc shows the parent's environment as it started
         environ = f"/proc/{rp._proc.pid}/environ"
@@ -113,5 +114,5 @@ def test_the_child_is_started_without_numpy_huge_pages_and_the_parent_environmen
             pytest.skip("no /proc here to read the child's environment from")
         with open(environ, "rb") as f:
             child_env = f.read().split(b"\0")
-    assert b"NUMPY_MADVISE_HUGEPAGE=0" in child_env
-    assert "NUMPY_MADVISE_HUGEPAGE" not in os.environ
+    assert b"NUMPY_MADVISE_HUGEPAGE=0" in child_env and b"OMP_NUM_THREADS=1" in child_env
+    assert "NUMPY_MADVISE_HUGEPAGE" not in os.environ and os.environ["OMP_NUM_THREADS"] == "2"
