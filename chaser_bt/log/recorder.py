@@ -531,5 +531,8 @@ def _metadata(runner: MissionRunner, link: VehicleLink, resources: Mapping[str, 
     camera = resources.get("camera")
     pipeline = getattr(camera, "pipeline", None)
     if pipeline is not None and hasattr(pipeline, "camera") and hasattr(pipeline, "config"):
-        meta["camera"] = S.json_bytes({"model": pipeline.camera, "pipeline": pipeline.config}).decode()
+        camera_meta = {"model": pipeline.camera, "pipeline": pipeline.config}
+        if getattr(camera, "lag_frames", 0):  # a rehearsal's camera: replay processes each frame a tick late too
+            camera_meta.update(lag_frames=camera.lag_frames, stale_after_s=camera.stale_after_s)
+        meta["camera"] = S.json_bytes(camera_meta).decode()
     return meta

@@ -205,6 +205,8 @@ class _ReplayFrameSource:
 
     Frame times are stored in whole nanoseconds; a frame taken at the very time the mission asked for
     (a simulated camera) gets that time back bit for bit, so time-dependent filters replay exactly.
+    A lagged camera (:class:`~chaser_bt.vision.lagged_camera.LaggedCamera`) takes a shot at one tick
+    and develops it at the next: the frame recorded for that shot, if one was.
     """
 
     def __init__(self) -> None:
@@ -217,6 +219,14 @@ class _ReplayFrameSource:
         self.pending = [f for f in self.pending if f.t > t + 1e-9]
         frame = ready[-1]
         return Frame(t, frame.image, frame.index) if abs(frame.t - t) <= 1e-9 else frame
+
+    def shot(self, t: float, regions: Any = None) -> float:
+        return t
+
+    def develop(self, shot: float, regions: Any = None) -> Frame | None:
+        """The frame recorded for the shot taken at ``shot`` (None: not recorded; a log may keep only some)."""
+        frame = self.read(shot)
+        return frame if frame is not None and frame.t == shot else None
 
 
 def _segments(log: FlightLog) -> tuple[list[_Segment], int]:
@@ -285,9 +295,17 @@ def recorded_camera_factory(log: FlightLog) -> Callable[[Any], Any] | None:
     raw = json.loads(log.meta["camera"])
     model = CameraModel(**{k: tuple(v) if isinstance(v, list) else v for k, v in raw["model"].items()})
     config = PipelineConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in raw["pipeline"].items()})
+    lag_frames = raw.get("lag_frames", 0)
+    if lag_frames not in (0, 1):
+        raise LogError(f"{log.path}: camera lag_frames {lag_frames!r}: replay knows 0 (inline) and 1 (a rehearsal's)")
 
     def build(source: Any) -> Any:
-        return CameraSensor(source, VisionPipeline(model, Detector(threads=1), config))
+        pipeline = VisionPipeline(model, Detector(threads=1), config)
+        if lag_frames:  # a rehearsal's camera: each frame processed in the tick after its own
+            from chaser_bt.vision.lagged_camera import LaggedCamera
+
+            return LaggedCamera(source, pipeline, stale_after_s=float(raw["stale_after_s"]))
+        return CameraSensor(source, pipeline)
 
     return build
 

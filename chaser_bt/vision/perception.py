@@ -30,7 +30,7 @@ Thread counts: the detector runs with one intra-op thread (``Detector(threads=1)
 process-wide, onnxruntime's per session, inter-op 1) and a flight sets OpenCV to one thread
 (``cv2.setNumThreads(1)``), so the processing thread uses one core and the tick loop and the MAVLink
 link keep the other (docs/vision.md). Rehearsals do not use the worker: their camera
-(``sitl.bench.lagged_camera.LaggedCamera``) keeps the same one-frame lag in lock-step with the
+(``chaser_bt.vision.lagged_camera.LaggedCamera``) keeps the same one-frame lag in lock-step with the
 simulator, so a seed reproduces a rehearsal exactly.
 """
 

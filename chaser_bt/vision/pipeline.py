@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Callable, Sequence
+from typing import Callable, ClassVar, Sequence
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -399,6 +399,8 @@ class CameraSensor:
     pipeline: VisionPipeline
     whole_frames: bool = False
     last_frame: Frame | None = field(default=None, init=False)  # the frame last processed (for streaming and logs)
+    #: Ticks between a frame's shot and the tick that processes it (a log's replay does the same).
+    lag_frames: ClassVar[int] = 0
 
     def step(self, t: float, ownship: OwnshipPose, target_range_m: float | None = None,
              cue: TargetCue | None = None) -> TargetEstimate | None:

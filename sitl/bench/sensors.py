@@ -10,7 +10,7 @@ A rehearsal's mission gets exactly what it would get on the field, and nothing m
   model, from a handheld-GPS/compass guess; with ``"surveyed"`` it is the truth plus a survey error
   (GPS 1.5 m horizontal, 3 m vertical, compass 0.5 deg, inclinometer 0.2 deg, 1 sigma). Radar scan
   times and the mission clock are both the simulator's boot clock, so the feed's time offset is 0.
-- **camera**: a :class:`~sitl.bench.lagged_camera.LaggedCamera` (a frame behind the tick, as a
+- **camera**: a :class:`~chaser_bt.vision.lagged_camera.LaggedCamera` (a frame behind the tick, as a
   flight's camera pipeline beside its control loop) over the simulator's renderer
   (:class:`ScenarioFrameSource`) drawing the scenario's intruders (``phantom``) and scripted targets
   present at the time (their ``kind``; the k-th in colour scheme k), read by the shipped detector;
@@ -49,8 +49,8 @@ from chaser_bt.radar.stream import QueueDatagramSource
 from chaser_bt.target_telemetry import TargetTelemetry
 from chaser_bt.vision.camera import CameraModel
 from chaser_bt.vision.frame_source import Frame, Region
+from chaser_bt.vision.lagged_camera import LaggedCamera
 from chaser_bt.vision.pipeline import CameraSensor, VisionPipeline
-from sitl.bench.lagged_camera import LaggedCamera
 from sitl.bench.radar_trials import (
     FIELD,
     OWNSHIP,
@@ -94,7 +94,7 @@ class SensorOptions:
         telemetry: the intruders' own MAVLink position as TargetTelemetry.
         whole_frames: render every frame whole instead of only the regions the pipeline reads
             (the reference a speed benchmark compares with; docs/vision.md, "Regions of interest").
-        camera_lag: the camera one frame behind the tick (:class:`~sitl.bench.lagged_camera.LaggedCamera`:
+        camera_lag: the camera one frame behind the tick (:class:`~chaser_bt.vision.lagged_camera.LaggedCamera`:
             the estimate a tick reads is the last frame's, as on an aircraft whose camera pipeline
             runs beside the control loop); False: each frame read and processed inside its tick.
         render_process: with ``camera_lag``, draw the frames in a process of their own

@@ -74,12 +74,13 @@ def scenario(time_limit_s: float = 120.0, vision: bool = False) -> Scenario:
 
 
 def fly(path: Path | None, seed: int = 3, *, time_limit_s: float = 120.0, pace: float | None = None, vision: bool = False,
-        on_tick: Callable[[MissionRunner], None] | None = None,
+        camera_lag: bool = False, on_tick: Callable[[MissionRunner], None] | None = None,
         on_start: Callable[[Recorder], None] | None = None, **record) -> tuple[MissionRunner, Recorder | None]:
     """Fly the radar hop lock-step as a rehearsal does, recording to ``path`` (None: no recording).
 
     ``pace``: simulated seconds per wall second (None: as fast as possible). ``vision``: fly the
-    vision hop (the camera resource, :data:`VISION_TREE_TEXT`) instead.
+    vision hop (the camera resource, :data:`VISION_TREE_TEXT`) instead, its camera inside the tick
+    as on a flight flown inline, or a frame behind it as a rehearsal's (``camera_lag``).
     """
     reset_blackboard()
     tree = load_tree_text(VISION_TREE_TEXT if vision else TREE_TEXT, source="<log test>")
@@ -95,9 +96,7 @@ def fly(path: Path | None, seed: int = 3, *, time_limit_s: float = 120.0, pace: 
     if vision:
         from sitl.bench.sensors import SensorOptions, build_sensors
 
-        # The camera inside the tick, as on a flight flown inline: a replay processes each recorded
-        # frame in the tick that logged it (a rehearsal's lagged camera replays close, not exactly).
-        options = SensorOptions(radar=False, telemetry=False, camera_size=(320, 240), camera_lag=False)
+        options = SensorOptions(radar=False, telemetry=False, camera_size=(320, 240), camera_lag=camera_lag)
         resources = build_sensors(v, options, seed).resources
     runner = MissionRunner(tree, v.link, v.clock, resources=resources)
     runner.setup()

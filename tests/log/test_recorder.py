@@ -146,7 +146,7 @@ def test_belief_and_camera_frames_are_recorded_for_foxglove(tmp_path):
 
 def test_a_lagged_camera_is_recorded_frame_by_frame_as_its_shots_are_developed(tmp_path):
     """A rehearsal's camera develops each shot a tick later: each frame is recorded once, whole, with its box."""
-    from sitl.bench.lagged_camera import LaggedCamera
+    from chaser_bt.vision.lagged_camera import LaggedCamera
 
     shots: list = []
 

@@ -147,15 +147,19 @@ def test_plot_command_draws_the_figures(recorded, tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_replay_reruns_the_detector_on_lossless_frames_exactly(tmp_path):
+@pytest.mark.parametrize("camera_lag", [False, True], ids=["inline", "lagged"])
+def test_replay_reruns_the_detector_on_lossless_frames_exactly(tmp_path, camera_lag):
     """Every frame recorded as PNG: the replayed detector, trackers and range filter give the same
-    estimates, byte for byte, and the same status changes (JPEG frames would not promise that)."""
+    estimates, byte for byte, and the same status changes (JPEG frames would not promise that); a
+    rehearsal's camera, a frame behind the tick, too."""
     from chaser_bt.log.recorder import attach_recorder
     from chaser_bt.log.replay import recorded_camera_factory
     from log_flight import VISION_TREE_TEXT
 
-    runner, recorder = fly(tmp_path / "vision.mcap", vision=True, frame_format="png", frame_period_s=0.0)
+    runner, recorder = fly(tmp_path / "vision.mcap", vision=True, camera_lag=camera_lag, frame_format="png",
+                           frame_period_s=0.0)
     log = read_log(tmp_path / "vision.mcap")
+    assert json.loads(log.meta["camera"]).get("lag_frames", 0) == int(camera_lag)
     again: list = []
     result = replay(log, tree(VISION_TREE_TEXT), camera_factory=recorded_camera_factory(log),
                     on_start=lambda r, link, res: again.append(attach_recorder(r, link, res, tmp_path / "again.mcap")))

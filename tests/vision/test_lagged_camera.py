@@ -7,7 +7,7 @@ from scipy.spatial.transform import Rotation
 
 from chaser_bt.vision.frame_source import Frame
 from chaser_bt.vision.pipeline import OwnshipPose
-from sitl.bench.lagged_camera import LaggedCamera
+from chaser_bt.vision.lagged_camera import LaggedCamera
 from sitl.world.camera.frame_source import Shot
 
 
@@ -100,3 +100,19 @@ def test_a_source_that_reads_whole_frames_gets_whole_shots_and_plans_made_when_p
     cam.step(0.0, _pose(0.0))
     cam.step(0.1, _pose(0.1))
     assert log == [("shot", 0.0, None), ("shot", 0.1, None), ("develop", 0.0, None), ("process", 0.0, 0.0, None, None, None)]
+
+
+class _SomeFrames(_Source):
+    """Develops only the shots taken at whole seconds (a replayed log that kept some frames)."""
+
+    def develop(self, shot: Shot, regions):
+        return super().develop(shot, regions) if shot.t == int(shot.t) else None
+
+
+def test_a_shot_the_source_has_no_frame_for_gives_no_estimate_and_keeps_the_last_frame():
+    log: list = []
+    cam = LaggedCamera(_SomeFrames(log), _Pipeline(log))
+    cam.step(1.0, _pose(1.0))
+    assert cam.step(1.1, _pose(1.1)) == "estimate of 1.0"
+    assert cam.step(1.2, _pose(1.2)) is None  # frame 1.1 was not kept: nothing processed
+    assert cam.last_frame.t == 1.0 and [e for e in log if e[0] == "process"] == [("process", 1.0, 1.0, None, None, 1.0)]
