@@ -1,8 +1,9 @@
 """``chaser-bt replay LOG TREE`` and ``chaser-bt plot LOG``; the ``--record`` / ``--live`` flags of run and rehearse.
 
-``replay`` ticks a tree on a recorded flight (docs/logs.md) and prints its status changes and the
-radar correlator's associations, each compared with the recording; ``--json`` prints one object.
-With ``--check`` it exits 1 unless both are exactly as recorded. ``plot`` draws the paper's figures
+``replay`` ticks a tree on a recorded flight (docs/logs.md) and prints its status changes, the
+radar correlator's associations and the target cues and estimates the tree wrote, each compared with
+the recording; ``--json`` prints one object. With ``--check`` it exits 1 unless all three are exactly
+as recorded. ``plot`` draws the paper's figures
 from a log into PNG files. Bad input (no such file, not a log, an invalid tree) exits 2.
 
 The lead wires recording into ``run`` and ``rehearse`` with :func:`add_recording_arguments` and
@@ -39,8 +40,8 @@ def add_command(subparsers) -> None:
     p.add_argument("--correlator", choices=("gated", "alg1"),
                    help="re-run the radar with this correlator: gated (ours) or alg1 (the paper's Algorithm 1; default: as recorded)")
     p.add_argument("--check", action="store_true",
-                   help="exit 1 unless status changes and associations are exactly as recorded (a detector re-run on "
-                        "JPEG frames may differ: record with --record-frames png for an exact replay)")
+                   help="exit 1 unless status changes, associations and target cues are exactly as recorded (a "
+                        "detector re-run on JPEG frames may differ: record with --record-frames png for an exact replay)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(handler=run_replay)
 
@@ -122,14 +123,27 @@ class RecordingHook:
 
 
 def run_replay(args: argparse.Namespace) -> int:
+    from chaser_bt.log import schemas as S
+    from chaser_bt.log.recorder import TopicSink, attach_recorder
     from chaser_bt.log.replay import (LogError, read_log, recorded_associations, recorded_camera_factory,
                                       recorded_status_changes, replay)
     from chaser_bt.tree import TreeError, load_tree
 
+    targets = TopicSink(S.TOPIC_TARGET)
+    recorders: list = []
+
+    def keep_targets(runner: Any, link: Any, resources: Any) -> None:  # no file, no frames: the cues only
+        recorders.append(attach_recorder(runner, link, resources, None, sinks=[targets], frame_period_s=float("inf")))
+
     try:
         log = read_log(args.log)
         tree = load_tree(args.tree)
-        result = replay(log, tree, correlator=args.correlator, camera_factory=recorded_camera_factory(log))
+        try:
+            result = replay(log, tree, correlator=args.correlator, camera_factory=recorded_camera_factory(log),
+                            on_start=keep_targets)
+        finally:
+            for recorder in recorders:
+                recorder.close()
     except (LogError, TreeError) as exc:
         print(f"chaser-bt: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -139,10 +153,14 @@ def run_replay(args: argparse.Namespace) -> int:
     rec_changes, rec_assoc = recorded_status_changes(log), recorded_associations(log)
     same_changes = _first_difference(rec_changes, result.status_changes)
     same_assoc = _first_difference(rec_assoc, result.associations)
+    rec_targets = [json.loads(m.data) for m in log.topic(S.TOPIC_TARGET)]
+    new_targets = [json.loads(d) for d in targets.records]
+    same_targets = _first_difference(rec_targets, new_targets)
     if args.json:
         out = result.to_dict()
         out.update(log=str(args.log), truncated=log.truncated, status_changes_as_recorded=same_changes is None,
-                   associations_as_recorded=same_assoc is None)
+                   associations_as_recorded=same_assoc is None, target_cues=len(new_targets),
+                   target_cues_as_recorded=same_targets is None)
         print(json.dumps(out))
     else:
         if log.truncated:
@@ -158,7 +176,9 @@ def run_replay(args: argparse.Namespace) -> int:
             ids = sorted({a["associated_id"] for a in result.associations if a["associated_id"] is not None})
             print(f"radar: {len(result.associations)} pictures, ownship track(s) {ids}")
             print(_compare_line("associations", len(result.associations), same_assoc, rec_assoc, result.associations))
-    if args.check and (same_changes is not None or same_assoc is not None):
+        if new_targets or rec_targets:
+            print(_compare_line("target cues and estimates", len(new_targets), same_targets, rec_targets, new_targets))
+    if args.check and (same_changes is not None or same_assoc is not None or same_targets is not None):
         return EXIT_FAILED
     return EXIT_OK
 
@@ -186,7 +206,8 @@ def _entry(entries: list, i: int) -> str:
     e = entries[i]
     if hasattr(e, "node"):
         return f"{e.t:.2f} s {e.node}: {e.old} -> {e.new}"
-    return json.dumps(e, default=str)
+    text = json.dumps(e, default=str)
+    return text if len(text) <= 160 else text[:157] + "..."
 
 
 def run_plot(args: argparse.Namespace) -> int:

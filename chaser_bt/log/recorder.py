@@ -44,7 +44,7 @@ from chaser_bt.vehicle import VehicleLink
 if TYPE_CHECKING:  # chaser_bt.search is slow to import; a belief is recognised by its shape
     from chaser_bt.search.belief import BeliefGrid
 
-__all__ = ["LogSink", "McapSink", "Recorder", "attach_recorder"]
+__all__ = ["LogSink", "McapSink", "TopicSink", "Recorder", "attach_recorder"]
 
 log = logging.getLogger(__name__)
 
@@ -59,6 +59,21 @@ class LogSink(Protocol):
     def write(self, spec: S.ChannelSpec, t_ns: int, data: bytes) -> None: ...
 
     def close(self) -> None: ...
+
+
+class TopicSink:
+    """Keeps one topic's records (their bytes) in memory: what ``chaser-bt replay`` compares with a log."""
+
+    def __init__(self, topic: str) -> None:
+        self.topic = topic
+        self.records: list[bytes] = []
+
+    def write(self, spec: S.ChannelSpec, t_ns: int, data: bytes) -> None:
+        if spec.topic == self.topic:
+            self.records.append(data)
+
+    def close(self) -> None:
+        pass
 
 
 class McapSink:

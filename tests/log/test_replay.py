@@ -78,8 +78,9 @@ def test_replay_command_reports_an_exact_match(recorded, capsys):
     tree_file.write_text(TREE_TEXT)
     assert cli("replay", str(path), str(tree_file), "--check", "--json") == 0
     out = json.loads(capsys.readouterr().out)
-    assert out["status_changes_as_recorded"] and out["associations_as_recorded"]
+    assert out["status_changes_as_recorded"] and out["associations_as_recorded"] and out["target_cues_as_recorded"]
     assert len(out["status_changes"]) == len(runner.tick_log)
+    assert out["target_cues"] == len(read_log(path).topic(S.TOPIC_TARGET)) > 20  # the radar's cues
     changed = path.with_name("changed.yaml")
     changed.write_text(TREE_TEXT.replace("Hover: {duration_s: 6}", "Hover: {duration_s: 3}"))
     assert cli("replay", str(path), str(changed), "--check") == 1
@@ -148,7 +149,7 @@ def test_plot_command_draws_the_figures(recorded, tmp_path, capsys):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("camera_lag", [False, True], ids=["inline", "lagged"])
-def test_replay_reruns_the_detector_on_lossless_frames_exactly(tmp_path, camera_lag):
+def test_replay_reruns_the_detector_on_lossless_frames_exactly(tmp_path, camera_lag, capsys):
     """Every frame recorded as PNG: the replayed detector, trackers and range filter give the same
     estimates, byte for byte, and the same status changes (JPEG frames would not promise that); a
     rehearsal's camera, a frame behind the tick, too."""
@@ -169,3 +170,7 @@ def test_replay_reruns_the_detector_on_lossless_frames_exactly(tmp_path, camera_
     estimates = [m.data for m in log.topic(S.TOPIC_TARGET)]
     assert len(estimates) > 15  # the target was seen
     assert [m.data for m in read_log(tmp_path / "again.mcap").topic(S.TOPIC_TARGET)] == estimates
+    tree_file = tmp_path / "vision.yaml"
+    tree_file.write_text(VISION_TREE_TEXT)
+    assert cli("replay", str(tmp_path / "vision.mcap"), str(tree_file), "--check") == 0  # the command says so too
+    assert f"target cues and estimates: {len(estimates)}, exactly as recorded" in capsys.readouterr().out
