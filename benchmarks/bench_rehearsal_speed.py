@@ -24,7 +24,9 @@ counted; the rest of a tick is the simulator, the tree and the scoring.
 Prints one JSON line: {"name": "rehearsal_speed", "realtime_factor_median", "with_setup_realtime_factor_median",
 "in_process_realtime_factor_median",
 "speedup_render_process", "reference_realtime_factor_median", "speedup_vs_reference", "tick_ms_median",
-"parts_ms", "sim_time_s", "runs": [...], "opencv_threads", "load_avg_1m"}.
+"parts_ms", "sim_time_s", "runs": [...], "opencv_threads", "detector_threads", "load_avg_1m"}. The detector runs
+as each mode runs it in a rehearsal (``sitl.bench.sensors.detector_threads``: two threads beside a render
+process, one in-process, unless ``OMP_NUM_THREADS`` says otherwise).
 Run: .venv/bin/python benchmarks/bench_rehearsal_speed.py [--seed 1] [--sim-s 300] [--repeats 3] [--no-reference]
 [--opencv-threads 1]
 """
@@ -112,7 +114,7 @@ def main() -> None:
         cv2.setNumThreads(args.opencv_threads)
     os.environ.setdefault("MAVLINK20", "1")
     from sitl.bench.rehearsal import rehearse
-    from sitl.bench.sensors import SensorOptions
+    from sitl.bench.sensors import SensorOptions, detector_threads
     from sitl.world.scenario import load_scenario
     from chaser_bt.vision.detector.inference import Detector
     from chaser_bt.vision.trackers import TrackerBank
@@ -125,7 +127,8 @@ def main() -> None:
     parts.wrap(TrackerBank, "advance", "trackers")
     scenario = dataclasses.replace(load_scenario(ROOT / "sitl/scenarios/chase.yaml"), time_limit_s=args.sim_s)
     tree = ROOT / "trees/chase.yaml"
-    rehearse(tree, dataclasses.replace(scenario, time_limit_s=5.0), args.seed)  # loads, compiles and caches before timing
+    for render_process in (False, True):  # loads (the detector as each mode runs it), compiles and caches before timing
+        rehearse(tree, dataclasses.replace(scenario, time_limit_s=5.0), args.seed, sensors=SensorOptions(render_process=render_process))
     runs, here, refs = [], [], []
     for _ in range(args.repeats):
         parts.start()
@@ -152,6 +155,7 @@ def main() -> None:
         ref_rtf = statistics.median(r["realtime_factor"] for r in refs)
         out |= {"reference_realtime_factor_median": ref_rtf, "speedup_vs_reference": round(rtf / ref_rtf, 3), "reference_runs": refs}
     out["opencv_threads"] = args.opencv_threads or "default"
+    out["detector_threads"] = {"render_process": detector_threads(beside_renderer=True), "in_process": detector_threads()}
     out["load_avg_1m"] = round(os.getloadavg()[0], 2)
     print(json.dumps(out))
 

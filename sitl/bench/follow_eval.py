@@ -140,10 +140,10 @@ def fly_follow(scenario: Scenario, seed: int, *, follow_ports: str = "", duratio
                 % (intruder.spec.sysid, ports))
         runner = _runner(v, body, {"target_telemetry": tel})
     else:
-        from sitl.bench.sensors import shared_detector, shared_ground
+        from sitl.bench.sensors import detector_threads, shared_detector, shared_ground
 
         source = SimulatorFrameSource(v.sim, cam, [SimTarget(target_kind, intruder)], seed, ground=shared_ground())
-        camera = CameraSensor(source, VisionPipeline(cam, shared_detector(), pipeline_config or PipelineConfig()))
+        camera = CameraSensor(source, VisionPipeline(cam, shared_detector(detector_threads()), pipeline_config or PipelineConfig()))
         body = ("ReactiveSequence:\n  children:\n    - ForceSuccess: {child: {VisionPipeline: {%s}}}\n"
                 "    - CVFollow: {%s}\n" % (vision_ports, ports))
         runner = _runner(v, body, {"camera": camera})

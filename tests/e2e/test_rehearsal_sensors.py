@@ -248,3 +248,28 @@ def test_the_camera_world_is_built_while_the_sensors_are_set_up_and_only_for_a_t
     calls.clear()
     rehearse(ROOT / "trees" / "takeoff_land.yaml", short, 1, sensors=SensorOptions(camera_size=(320, 240)))
     assert calls == []  # no camera leaf: no world, no frame
+
+
+def test_the_detector_takes_a_second_thread_only_beside_a_render_process(monkeypatch):
+    from sitl.bench.sensors import detector_threads
+
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    monkeypatch.setattr("os.cpu_count", lambda: 2)
+    assert detector_threads() == 1 and detector_threads(beside_renderer=True) == 2
+    monkeypatch.setattr("os.cpu_count", lambda: 1)
+    assert detector_threads(beside_renderer=True) == 1  # one core: the renderer has no idle core to lend
+    monkeypatch.setenv("OMP_NUM_THREADS", "3")
+    assert detector_threads() == detector_threads(beside_renderer=True) == 3  # said outright: as said
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    monkeypatch.setattr("os.cpu_count", lambda: 2)
+    assert detector_threads(beside_renderer=True) == 1  # a campaign worker's setting holds
+    monkeypatch.delenv("OMP_NUM_THREADS")
+    options = SensorOptions(radar=False, telemetry=False, camera_size=(160, 120))
+    drawn_here = build_sensors(InProcessVehicle(load_scenario(CHASE), 1), options, 1)
+    beside = build_sensors(InProcessVehicle(load_scenario(CHASE), 1), dataclasses.replace(options, render_process=True), 1)
+    try:
+        assert drawn_here.camera.pipeline.detector.threads == 1
+        assert beside.render_process is not None and beside.camera.pipeline.detector.threads == 2
+    finally:
+        drawn_here.close()
+        beside.close()
