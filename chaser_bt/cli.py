@@ -338,7 +338,7 @@ def _rehearse(args: argparse.Namespace) -> int:
         scenario = dataclasses.replace(scenario, time_limit_s=min(scenario.time_limit_s, args.time_limit))
     from sitl.ardupilot.process import ArduPilotMissing
     from sitl.ardupilot.simulator import ArduPilotStopped
-    from sitl.bench.rehearsal import AutopilotChoice, RehearsalInterrupted, rehearse
+    from sitl.bench.rehearsal import AutopilotChoice, RehearsalInterrupted, SensorSetupError, rehearse
     from sitl.bench.sensors import SensorOptions
 
     on_tick = _tick_printer(tree, sys.stderr if args.json else sys.stdout) if args.show_ticks else None
@@ -360,6 +360,10 @@ def _rehearse(args: argparse.Namespace) -> int:
     except RehearsalInterrupted as stop:  # Ctrl-C or SIGTERM: the partial report, then exit 130
         report, interrupted = stop.report, True
     except (ArduPilotMissing, ArduPilotStopped) as exc:  # no autopilot to fly: nothing was flown
+        print(f"chaser-bt: rehearse: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+    except SensorSetupError as exc:  # nothing was flown; -vv logs the cause's traceback
+        log.debug("sensor set-up failed", exc_info=exc.__cause__)
         print(f"chaser-bt: rehearse: {exc}", file=sys.stderr)
         return EXIT_FAILED
     finally:

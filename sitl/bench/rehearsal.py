@@ -38,7 +38,7 @@ from sitl.bench.sensors import SensorOptions, build_sensors
 from sitl.simulator import Simulator
 from sitl.world.scenario import Scenario, load_scenario
 
-__all__ = ["RehearsalInterrupted", "RehearsalReport", "rehearse"]
+__all__ = ["RehearsalInterrupted", "RehearsalReport", "SensorSetupError", "rehearse"]
 
 log = logging.getLogger(__name__)
 
@@ -129,6 +129,11 @@ class RehearsalInterrupted(KeyboardInterrupt):
         self.report = report
 
 
+class SensorSetupError(RuntimeError):
+    """The rehearsal's sensors could not be set up (the camera's render process failed, say): nothing
+    was flown. The message is one line, the cause's last; the cause is chained with its traceback."""
+
+
 def rehearse(
     tree: MissionTree | str | Path,
     scenario: Scenario | str | Path,
@@ -157,6 +162,7 @@ def rehearse(
 
     Raises:
         RehearsalInterrupted: on Ctrl-C, carrying the report of the flight so far (outcome ``interrupted``).
+        SensorSetupError: the sensors could not be set up; nothing was flown.
     """
     reset_blackboard()
     if not isinstance(tree, MissionTree):
@@ -176,10 +182,13 @@ def rehearse(
         mission_sensors = build_sensors(vehicle, options, seed)
         if looks and mission_sensors.frame_source is not None:
             mission_sensors.frame_source.prepare()  # the camera's world is set-up, like the radar's calibration
-    except BaseException:
+    except BaseException as exc:
         if mission_sensors is not None:
             mission_sensors.close()
         vehicle.close()
+        if isinstance(exc, Exception):
+            last = str(exc).strip().splitlines()[-1:] or [""]  # a child's traceback ends with its own error
+            raise SensorSetupError(f"the sensors could not be set up: {type(exc).__name__}: {last[0]}") from exc
         raise
     sensors_wall = time.perf_counter() - sensors_start
     runner = MissionRunner(tree, vehicle.link, vehicle.clock, rate_hz=rate_hz, resources=mission_sensors.resources)

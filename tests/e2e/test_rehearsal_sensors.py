@@ -273,3 +273,25 @@ def test_the_detector_takes_a_second_thread_only_beside_a_render_process(monkeyp
     finally:
         drawn_here.close()
         beside.close()
+
+
+def test_a_render_process_that_cannot_build_its_world_fails_the_set_up_in_one_line(tmp_path, monkeypatch, capsys):
+    """Nothing is flown: rehearse() raises SensorSetupError naming the child's own error (its traceback
+    chained), and ``chaser-bt rehearse`` says it in one line and exits 1."""
+    from sitl.bench.rehearsal import SensorSetupError
+    from sitl.world.camera.world import WorldSpec
+
+    broken = dataclasses.replace(load_scenario(CHASE), time_limit_s=5.0, camera_world=WorldSpec(family="no-such-family"))
+    options = SensorOptions(camera_size=(160, 120), render_process=True)
+    with pytest.raises(SensorSetupError, match=r"^the sensors could not be set up: RuntimeError: .*no-such-family") as err:
+        rehearse(ROOT / "trees" / "chase.yaml", broken, 1, sensors=options)
+    assert "\n" not in str(err.value) and "Traceback" in str(err.value.__cause__)
+
+    import chaser_bt.cli as cli
+
+    monkeypatch.setattr(cli, "_load_scenario", lambda path: broken)
+    code = cli.main(["rehearse", str(ROOT / "trees" / "chase.yaml"), "--scenario", str(CHASE), "--progress", "never",
+                     "--camera-size", "160x120"])
+    err_lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 1 and len(err_lines) == 1
+    assert err_lines[0].startswith("chaser-bt: rehearse: the sensors could not be set up: RuntimeError:")
