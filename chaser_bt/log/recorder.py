@@ -73,7 +73,7 @@ class TopicSink:
             self.records.append(data)
 
     def close(self) -> None:
-        pass
+        """Nothing to release: the records stay readable after the recorder closes."""
 
 
 class McapSink:

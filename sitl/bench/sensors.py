@@ -18,7 +18,7 @@ A rehearsal's mission gets exactly what it would get on the field, and nothing m
   The detector is loaded at the first frame; the camera world is built (or waited for) by
   :meth:`ScenarioFrameSource.prepare`, which a rehearsal calls while it sets the sensors up when its
   tree has a camera leaf (a mission without vision never pays for either). The detector runs one
-  thread (it shares two cores with the simulator).
+  thread, two beside a render process (:func:`detector_threads`).
 - **target telemetry**: a :class:`~chaser_bt.target_telemetry.TargetTelemetry` as the vehicle delivers it (on its link in process, on the intruders' own radio beside ArduCopter)
   (the intruders' own MAVLink positions).
 
@@ -193,9 +193,9 @@ def detector_threads(beside_renderer: bool = False) -> int:
 
     Beside a render process the second thread runs while the renderer's core is idle (its drawing
     fills a little more than half of each tick): the same detections, and rehearsals 1.5-21 % faster
-    in eight interleaved pairs of 120 s chases on the two-core machine (median 6 %). Drawing in-process, as a campaign's workers
-    do, both cores are already busy, so one (onnxruntime's threads sleep rather than spin while they
-    wait: :func:`~chaser_bt.vision.detector.onnx_copy.ort_session`)."""
+    in eight interleaved pairs of 120 s chases on the two-core machine (median 6 %). Drawing
+    in-process, as a campaign's workers do, both cores are already busy, so one (onnxruntime's
+    threads sleep rather than spin while they wait: :func:`~chaser_bt.vision.detector.onnx_copy.ort_session`)."""
     env = os.environ.get("OMP_NUM_THREADS", "")
     if env.isdigit() and int(env) > 0:
         return int(env)
