@@ -22,8 +22,10 @@ __all__ = ["add_command", "evaluate_folder"]
 
 
 def evaluate_folder(data_dir: str | Path, weights: str | Path, image_size: int, threads: int = 1, limit: int = 0,
-                    backend: str = "auto") -> dict:
-    """Metrics (model card) and frames/s of the detector on a YOLO folder at ``image_size``."""
+                    backend: str = "auto", class_agnostic: bool = False) -> dict:
+    """Metrics (model card) and frames/s of the detector on a YOLO folder at ``image_size``;
+    ``class_agnostic`` scores every box as one class (footage labelled ``drone`` against a detector
+    that tells drone designs apart), else the folder's classes must be the detector's."""
     from chaser_bt.vision.detector.evaluate import (
         evaluate_detections,
         frames_per_second,
@@ -38,19 +40,26 @@ def evaluate_folder(data_dir: str | Path, weights: str | Path, image_size: int, 
         raise ValueError(f"{root / 'images'}: no .jpg images")
     det = Detector(weights, image_size=image_size, conf_threshold=0.005, threads=threads, backend=backend)
     names = det.class_names
+    listed = root / "classes.txt"
+    folder_names = tuple(x.strip() for x in listed.read_text().splitlines() if x.strip()) if listed.exists() else names
+    if not class_agnostic and folder_names != tuple(names):
+        raise ValueError(f"{listed}: classes {list(folder_names)} are not the detector's {list(names)} "
+                         "(--class-agnostic scores every box as one class)")
+    if class_agnostic:
+        names = ("any",)
     preds, gts, frames = [], [], []
     for p in paths:
         img = cv2.imread(str(p), cv2.IMREAD_COLOR)
         h, w = img.shape[:2]
         frames.append(img)
-        preds.append([(d.box, d.score, d.class_id) for d in det(img)])
+        preds.append([(d.box, d.score, 0 if class_agnostic else d.class_id) for d in det(img)])
         rows = []
         lab = root / "labels" / (p.stem + ".txt")
         for line in lab.read_text().splitlines() if lab.exists() else []:
             if line.strip():
                 c, cx, cy, bw, bh = line.split()
                 cx, cy, bw, bh = float(cx) * w, float(cy) * h, float(bw) * w, float(bh) * h
-                rows.append([int(c), cx - bw / 2, cy - bh / 2, cx + bw / 2, cy + bh / 2])
+                rows.append([0 if class_agnostic else int(c), cx - bw / 2, cy - bh / 2, cx + bw / 2, cy + bh / 2])
         gts.append(np.array(rows, float).reshape(-1, 5))
     m = evaluate_detections(preds, gts, len(names))
     det.conf_threshold = 0.25
@@ -167,7 +176,8 @@ def _eval(args: argparse.Namespace) -> int:
         return 2
     try:
         _check_weights(args.weights or DEFAULT_WEIGHTS)
-        results = [evaluate_folder(args.data, args.weights or DEFAULT_WEIGHTS, s, args.threads, args.limit, args.backend) for s in args.sizes]
+        results = [evaluate_folder(args.data, args.weights or DEFAULT_WEIGHTS, s, args.threads, args.limit, args.backend,
+                                   args.class_agnostic) for s in args.sizes]
     except (ValueError, FileNotFoundError) as e:
         print(f"chaser-bt: {e}", file=sys.stderr)
         return 2
@@ -203,8 +213,9 @@ def _quantize(args: argparse.Namespace) -> int:
 
 
 def _import_footage(args: argparse.Namespace) -> int:
-    """``chaser-bt import-footage``: a CVAT export of real footage into train/ and val/ YOLO folders."""
+    """``chaser-bt import-footage``: a CVAT export or the Halmstad dataset into YOLO folders."""
     from chaser_bt.vision.footage import import_footage
+    from chaser_bt.vision.footage.halmstad import import_halmstad, is_halmstad
 
     rename = {}
     for pair in args.rename or []:
@@ -213,17 +224,43 @@ def _import_footage(args: argparse.Namespace) -> int:
             print(f"chaser-bt: --rename {pair!r}: expected LABEL=CLASS", file=sys.stderr)
             return 2
         rename[old] = new
+    halmstad = args.format == "halmstad" or (args.format == "auto" and is_halmstad(args.export))
+    cvat_only = {"--video": args.video, "--video-start": args.video_start, "--video-step": args.video_step,
+                 "--chunk": args.chunk, "--prefix": args.prefix or None}
+    misplaced = [flag for flag, value in (cvat_only.items() if halmstad else
+                                          {"--every": args.every, "--parts": args.parts}.items()) if value is not None]
+    if misplaced:
+        print(f"chaser-bt: {' '.join(misplaced)}: not for {'the Halmstad dataset' if halmstad else 'a CVAT export'}",
+              file=sys.stderr)
+        return 2
     try:
-        summary = import_footage(args.export, args.out, video=args.video, chunk=args.chunk, val_frac=args.val_frac, seed=args.seed,
-                                 classes=args.classes, rename=rename, video_start=args.video_start, video_step=args.video_step,
-                                 min_box_px=args.min_box_px, prefix=args.prefix, preview=args.preview)
+        if halmstad:
+            summary = import_halmstad(args.export, args.out, classes=args.classes or ("drone",), rename=rename,
+                                      every=args.every or 10, val_frac=args.val_frac, seed=args.seed,
+                                      parts=args.parts or ("train", "val", "test"), min_box_px=args.min_box_px,
+                                      preview=args.preview, progress=_video_progress)
+        else:
+            summary = import_footage(args.export, args.out, video=args.video, chunk=args.chunk or 150,
+                                     val_frac=args.val_frac, seed=args.seed, classes=args.classes, rename=rename,
+                                     video_start=args.video_start or 0, video_step=args.video_step or 1,
+                                     min_box_px=args.min_box_px, prefix=args.prefix, preview=args.preview)
     except (ValueError, FileNotFoundError) as e:
         print(f"chaser-bt: {e}", file=sys.stderr)
         return 2
     for name, why in summary.skipped:
         print(f"skipped {name}: {why}", file=sys.stderr)
+    if halmstad and summary.skipped:
+        print(f"skipped {len(summary.skipped)} videos (named above)", file=sys.stderr)
     print(json.dumps(summary.to_dict()))
     return 0
+
+
+def _video_progress(done: int, total: int, name: str) -> None:
+    """One progress line a video, on stderr (the JSON summary keeps stdout)."""
+    sys.stderr.write(f"\r[{'#' * int(30 * done / total):<30}] {done}/{total} videos ({name})")
+    if done == total:
+        sys.stderr.write("\n")
+    sys.stderr.flush()
 
 
 def _check_weights(path: str | Path, flag: str = "--weights") -> None:
@@ -289,6 +326,8 @@ def add_command(subparsers) -> None:
     e.add_argument("--sizes", type=image_size, nargs="+", default=[416, 832], metavar="PX",
                    help="input sizes to evaluate at, px, multiples of 32 (default 416 832)")
     e.add_argument("--threads", type=positive_int, default=1, metavar="N", help="torch threads (default 1)")
+    e.add_argument("--class-agnostic", action="store_true",
+                   help="score every box as one class (footage labelled 'drone'; default: the folder's classes must be the detector's)")
     e.add_argument("--limit", type=non_negative_int, default=0, metavar="N", help="use the first N images only (default 0: all)")
     e.add_argument("--backend", choices=["auto", "torch", "onnx", "onnx-int8"], default="auto",
                    help="auto: the int8 ONNX copy when a current .int8.onnx file is beside the weights, else the "
@@ -314,26 +353,34 @@ def add_command(subparsers) -> None:
     q.add_argument("--keep-float", nargs="+", metavar="PREFIX",
                    help="node-name prefixes of the layers left float (default: /stem/ /head/)")
     q.set_defaults(handler=_quantize)
-    help_ = ("import a CVAT export (YOLO 1.1 or COCO 1.0, zip or folder) of your footage into train/ and val/ "
-             "YOLO folders, split by contiguous chunks")
+    help_ = ("import labelled footage into YOLO folders: a CVAT export (YOLO 1.1 or COCO 1.0, zip or folder) of your "
+             "footage into train/ and val/, split by contiguous chunks; or the Halmstad drone-detection dataset "
+             "into train/, val/ and its fixed held-out test/, split by video")
     f = subparsers.add_parser("import-footage", help=help_, description=help_)
-    f.add_argument("export", help="CVAT export: zip or unpacked folder")
+    f.add_argument("export", help="CVAT export (zip or unpacked folder), or the Halmstad dataset's folder")
+    f.add_argument("--format", choices=["auto", "cvat", "halmstad"], default="auto",
+                   help="what the export is (default auto: halmstad when the folder holds V_*_LABELS.mat files)")
     f.add_argument("--out", required=True, type=output_dir, metavar="DIR",
-                   help="folder to write train/, val/ and import.json into (required)")
+                   help="folder to write train/, val/ (test/) and import.json into (required)")
+    f.add_argument("--every", type=positive_int, default=None, metavar="N",
+                   help="Halmstad: write every N-th frame of each video (default 10)")
+    f.add_argument("--parts", nargs="+", choices=["train", "val", "test"], default=None,
+                   help="Halmstad: which parts to write (default: all three)")
     f.add_argument("--prefix", default="", help="start of every written file's name, one per flight sharing --out (default: none)")
     f.add_argument("--video", default=None, metavar="FILE",
                    help="take the frames from this video: export frame_NNNNNN = video frame N (default: the export's images)")
-    f.add_argument("--video-start", type=non_negative_int, default=0, metavar="N",
+    f.add_argument("--video-start", type=non_negative_int, default=None, metavar="N",
                    help="video frame of the export's frame 0, the task's start frame (default 0)")
-    f.add_argument("--video-step", type=positive_int, default=1, metavar="N",
+    f.add_argument("--video-step", type=positive_int, default=None, metavar="N",
                    help="video frames per export frame, the task's frame step (default 1)")
-    f.add_argument("--chunk", type=positive_int, default=150, metavar="N",
+    f.add_argument("--chunk", type=positive_int, default=None, metavar="N",
                    help="consecutive frames per chunk of the split (default 150: 5 s at 30 frames/s)")
     f.add_argument("--val-frac", type=non_negative_float, default=0.2, metavar="F",
-                   help="share of chunks held out for validation, 0..1 (default 0.2)")
+                   help="share of chunks (Halmstad: of each kind's videos) held out for validation, 0..1 (default 0.2)")
     f.add_argument("--seed", type=seed, default=0, metavar="N", help="which chunks are held out (default 0)")
     f.add_argument("--classes", nargs="+", default=None,
-                   help="output classes in id order, the detector's, e.g. s1000 phantom (default: the export's labels)")
+                   help="output classes in id order, the detector's, e.g. s1000 phantom (default: the export's labels; "
+                        "Halmstad: drone, the other kinds written as hard negatives)")
     f.add_argument("--rename", nargs="+", default=None, metavar="LABEL=CLASS",
                    help="export label to class, e.g. drone=s1000 (default: none)")
     f.add_argument("--min-box-px", type=non_negative_float, default=1.0, metavar="PX",

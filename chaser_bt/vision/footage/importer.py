@@ -28,6 +28,7 @@ from chaser_bt.vision.footage.archive import ExportArchive
 from chaser_bt.vision.footage.cvat import FootageError, LabelledFrame, read_export
 from chaser_bt.vision.footage.split import chunk_split
 from chaser_bt.vision.footage.video import VideoFrames
+from chaser_bt.vision.footage.yolo_folder import box_line, draw_preview, prepare_parts, write_example
 
 __all__ = ["ImportSummary", "import_footage"]
 
@@ -80,20 +81,6 @@ def _pixels(frame: LabelledFrame, archive: ExportArchive, video: VideoFrames | N
     return (img, "") if img is not None else (None, "not a readable image")
 
 
-def _write_preview(path: Path, image: np.ndarray, lines: list[str], classes: Sequence[str]) -> None:
-    """The frame with its written boxes drawn (green) and named, for a look by eye."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    img = image.copy()
-    h, w = img.shape[:2]
-    for line in lines:
-        k, cx, cy, bw, bh = line.split()
-        x0, y0 = (float(cx) - float(bw) / 2) * w, (float(cy) - float(bh) / 2) * h
-        x1, y1 = x0 + float(bw) * w, y0 + float(bh) * h
-        cv2.rectangle(img, (round(x0), round(y0)), (round(x1), round(y1)), (0, 255, 0), 1)
-        cv2.putText(img, classes[int(k)], (round(x0), max(round(y0) - 2, 8)), cv2.FONT_HERSHEY_SIMPLEX, 0.3, (0, 255, 0), 1)
-    cv2.imwrite(str(path), img)
-
-
 def import_footage(export: str | Path, out_dir: str | Path, video: str | Path | None = None, chunk: int = 150,
                    val_frac: float = 0.2, seed: int = 0, classes: Sequence[str] | None = None,
                    rename: Mapping[str, str] | None = None, video_start: int = 0, video_step: int = 1,
@@ -132,22 +119,12 @@ def import_footage(export: str | Path, out_dir: str | Path, video: str | Path | 
             raise FootageError(f"{export}: its image names carry no distinct frame numbers (frame_000042...), "
                                f"so they cannot be matched to the frames of {video}")
         out_classes, cmap = _class_map(labels.classes, classes, rename or {})
-        for part in ("train", "val"):
-            have = out / part / "classes.txt"
-            if have.exists() and tuple(x.strip() for x in have.read_text().splitlines() if x.strip()) != out_classes:
-                raise FootageError(f"{have}: an earlier import has other classes than {list(out_classes)} (use a new folder)")
-            for f in labels.frames:
-                taken = out / part / "images" / f"{prefix}{f.frame:06d}.jpg"
-                if taken.exists():
-                    raise FootageError(f"{taken} exists: an earlier import wrote it (give this one another --prefix)")
         summary = ImportSummary(str(export), labels.format, out_classes, frames=len(labels.frames))
         train, val = chunk_split([f.frame for f in labels.frames], chunk, val_frac, seed)
         part_of = {i: "train" for i in train} | {i: "val" for i in val}
+        prepare_parts(out, ("train", "val"), out_classes, [f"{prefix}{f.frame:06d}" for f in labels.frames], create=False)
         source = VideoFrames(video, video_start, video_step) if video is not None else None  # a bad video: nothing written
-        for part in ("train", "val"):
-            (out / part / "images").mkdir(parents=True, exist_ok=True)
-            (out / part / "labels").mkdir(parents=True, exist_ok=True)
-            (out / part / "classes.txt").write_text("\n".join(out_classes) + "\n")
+        prepare_parts(out, ("train", "val"), out_classes)
         dropped: Counter[str] = Counter()
         chunks: dict[str, set[int]] = {"train": set(), "val": set()}
         try:
@@ -166,19 +143,16 @@ def import_footage(export: str | Path, out_dir: str | Path, video: str | Path | 
                     if k is None:
                         dropped[f"label {labels.classes[int(c)]!r} is not one of the classes"] += 1
                         continue
-                    x0, x1 = np.clip([x0, x1], 0, w)
-                    y0, y1 = np.clip([y0, y1], 0, h)
-                    if x1 - x0 < min_box_px or y1 - y0 < min_box_px:
+                    line = box_line(k, x0, y0, x1, y1, w, h, min_box_px)
+                    if line is None:
                         dropped[f"under {min_box_px:g} px once clipped to the image"] += 1
                         continue
-                    lines.append(f"{k} {(x0 + x1) / 2 / w:.6f} {(y0 + y1) / 2 / h:.6f} {(x1 - x0) / w:.6f} {(y1 - y0) / h:.6f}")
+                    lines.append(line)
                 part = part_of[i]
                 stem = f"{prefix}{frame.frame:06d}"
-                if not cv2.imwrite(str(out / part / "images" / f"{stem}.jpg"), img, [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality]):
-                    raise FootageError(f"{out / part / 'images' / stem}.jpg: could not be written")
-                (out / part / "labels" / f"{stem}.txt").write_text("".join(x + "\n" for x in lines))
+                write_example(out / part, stem, img, lines, jpeg_quality)
                 if summary.imported < preview:
-                    _write_preview(out / "preview" / f"{stem}.png", img, lines, out_classes)
+                    draw_preview(out / "preview" / f"{stem}.png", img, lines, out_classes)
                 summary.imported += 1
                 summary.boxes += len(lines)
                 setattr(summary, part, getattr(summary, part) + 1)
