@@ -15,7 +15,13 @@ copy (``<stem>.int8.onnx``, ``chaser-bt quantize-detector``) sits beside the wei
 for it follow under the same key with ``_int8`` appended, its frames/s taken right after the float
 one's on the same frames (the ratio is what to read on a shared machine). The pipeline follows the
 auto backend (int8 when current).
-Usage: python benchmarks/bench_vision.py [--quick] [--weights W.pt] [--person-weights P.pt] (default: the shipped detectors)
+Real footage (``*_real_heldout``): the drone detector at 416, class-agnostic, on the Halmstad
+drone-detection dataset's held-out third (``V_DRONE_077``-``114``, ``V_BIRD_035``-``051``,
+``V_AIRPLANE_040``-``059``, ``V_HELICOPTER_041``-``061``; every 10th frame; birds, airplanes and helicopters
+as negatives), imported from ``--halmstad DIR`` (default ``$CHASER_BT_HALMSTAD``) the way
+``chaser-bt import-footage`` does; the keys are null, and stderr says why, without it.
+Usage: python benchmarks/bench_vision.py [--quick] [--weights W.pt] [--person-weights P.pt] [--halmstad DIR]
+(default: the shipped detectors)
 """
 
 from __future__ import annotations
@@ -23,7 +29,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
+import tempfile
 import time
 
 import cv2
@@ -185,12 +193,39 @@ def render_fps(n: int) -> float:
     return n / (time.perf_counter() - t0)
 
 
+def real_heldout_metrics(root: str, weights: str) -> dict:
+    """AP@0.5, precision and recall at 0.25 (keys ``*_416_real_heldout`` and their ``_int8``) of the drone
+    detector, class-agnostic, on the Halmstad held-out third; nulls without the dataset."""
+    from pathlib import Path
+
+    from chaser_bt.vision.commands import evaluate_folder
+    from chaser_bt.vision.footage.halmstad import import_halmstad
+
+    keys = [f"{m}_416_real_heldout{v}" for v in ("", "_int8") for m in ("ap50", "p", "r")]
+    if not root:
+        print("bench_vision: no Halmstad dataset (--halmstad DIR or $CHASER_BT_HALMSTAD): *_real_heldout are null",
+              file=sys.stderr)
+        return dict.fromkeys(keys)
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        import_halmstad(root, tmp, parts=("test",), every=10)
+        backends = {"": "onnx", "_int8": "onnx-int8"} if int8_path(weights).exists() else {"": "onnx"}
+        for v, backend in backends.items():
+            m = evaluate_folder(Path(tmp) / "test", weights, 416, backend=backend, class_agnostic=True)
+            out.update({f"ap50_416_real_heldout{v}": round(m["ap50"], 4), f"p_416_real_heldout{v}": round(m["precision"], 4),
+                        f"r_416_real_heldout{v}": round(m["recall"], 4)})
+            out["real_heldout_images"] = m["images"]
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--weights", default=str(SHIPPED_WEIGHTS["tiny_yolo"]), help="drone detector weights (default: the shipped ones)")
     ap.add_argument("--person-weights", default=str(SHIPPED_WEIGHTS["person_yolo"]),
                     help="person detector weights (default: the shipped ones)")
+    ap.add_argument("--halmstad", default=os.environ.get("CHASER_BT_HALMSTAD", ""), metavar="DIR",
+                    help="the Halmstad drone-detection dataset's folder, for the *_real_heldout keys (default $CHASER_BT_HALMSTAD)")
     args = ap.parse_args()
     torch.set_num_threads(1)
     cv2.setNumThreads(1)
@@ -199,6 +234,7 @@ def main() -> None:
     domains = domain_metrics(n_det // 4 if args.quick else n_det // 2, 779, args.weights)
     person = person_metrics(n_det // 2, 778, args.person_weights)
     fol = follow_metrics(n_follow, 5, args.weights)
+    real = real_heldout_metrics(args.halmstad, args.weights)
     det_backend = Detector(args.weights).backend
     figures = {}
     for v in sorted({v for _, v in det}):
@@ -211,6 +247,7 @@ def main() -> None:
         "name": "vision",
         **figures,
         **domains,
+        **real,
         "pipeline_hz": round(fol["pipeline_hz"], 1),
         "bearing_err_deg_p95": round(fol["bearing_err_deg_p95"], 3),
         "correct_box_share": round(fol["correct_box_share"], 4),
