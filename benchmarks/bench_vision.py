@@ -15,6 +15,9 @@ copy (``<stem>.int8.onnx``, ``chaser-bt quantize-detector``) sits beside the wei
 for it follow under the same key with ``_int8`` appended, its frames/s taken right after the float
 one's on the same frames (the ratio is what to read on a shared machine). The pipeline follows the
 auto backend (int8 when current).
+Photographs (``*_416_photo``): the drone detector at 416, class-agnostic, on 300 frames (120 with
+``--quick``) of the ``photo`` family (``sitl.bench.photo_family``: drones drawn by their own code over
+scikit-image's sample photographs, a source nothing trains on), seed 780; null without scikit-image.
 Real footage (``*_real_heldout``): the drone detector at 416, class-agnostic, on the Halmstad
 drone-detection dataset's held-out third (``V_DRONE_077``-``114``, ``V_BIRD_035``-``051``,
 ``V_AIRPLANE_040``-``059``, ``V_HELICOPTER_041``-``061``; every 10th frame; birds, airplanes and helicopters
@@ -193,6 +196,27 @@ def render_fps(n: int) -> float:
     return n / (time.perf_counter() - t0)
 
 
+def photo_metrics(n: int, seed: int, weights: str) -> dict:
+    """AP@0.5, precision, recall and IoU (keys ``*_416_photo`` and their ``_int8``) of the drone detector,
+    class-agnostic, on ``n`` frames of the ``photo`` family; nulls without scikit-image."""
+    try:
+        from sitl.bench.photo_family import PhotoFamily
+
+        family = PhotoFamily()
+    except ImportError:
+        print("bench_vision: no scikit-image (pip install scikit-image): *_416_photo are null", file=sys.stderr)
+        return dict.fromkeys(f"{m}_416_photo{v}" for v in ("", "_int8") for m in ("ap50", "p", "r", "iou"))
+    rng = np.random.default_rng(seed)
+    frames = [family.sample(rng) for _ in range(n)]
+    out = {}
+    for v, det in variants(weights, image_size=416, conf_threshold=0.005, threads=1).items():
+        preds = [[(d.box, d.score, 0) for d in det(f.image)] for f in frames]
+        m = evaluate_detections(preds, [f.boxes for f in frames], 1)
+        out.update({f"ap50_416_photo{v}": round(m.ap50, 4), f"p_416_photo{v}": round(m.precision, 4),
+                    f"r_416_photo{v}": round(m.recall, 4), f"iou_416_photo{v}": round(m.iou, 4)})
+    return out
+
+
 def real_heldout_metrics(root: str, weights: str) -> dict:
     """AP@0.5, precision and recall at 0.25 (keys ``*_416_real_heldout`` and their ``_int8``) of the drone
     detector, class-agnostic, on the Halmstad held-out third; nulls without the dataset."""
@@ -235,6 +259,7 @@ def main() -> None:
     person = person_metrics(n_det // 2, 778, args.person_weights)
     fol = follow_metrics(n_follow, 5, args.weights)
     real = real_heldout_metrics(args.halmstad, args.weights)
+    photo = photo_metrics(n_det // 2, 780, args.weights)
     det_backend = Detector(args.weights).backend
     figures = {}
     for v in sorted({v for _, v in det}):
@@ -248,6 +273,7 @@ def main() -> None:
         **figures,
         **domains,
         **real,
+        **photo,
         "pipeline_hz": round(fol["pipeline_hz"], 1),
         "bearing_err_deg_p95": round(fol["bearing_err_deg_p95"], 3),
         "correct_box_share": round(fol["correct_box_share"], 4),

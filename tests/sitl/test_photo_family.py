@@ -1,0 +1,46 @@
+"""The ``photo`` family's drones: drawn to the asked span and view, and labelled by their drawn pixels."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sitl.bench.photo_family import draw_multirotor
+
+
+def _extent(cover: np.ndarray) -> tuple[int, int]:
+    ys, xs = np.nonzero(cover >= 0.25)
+    return xs.max() - xs.min() + 1, ys.max() - ys.min() + 1
+
+
+@pytest.mark.parametrize("span", [8.0, 30.0, 80.0])
+def test_a_drone_seen_from_above_is_its_span_plus_its_rotor_discs_across(span):
+    # Four arms at 45, 135, 225 and 315 deg: the motors sit at +-span/2 * cos(45 deg) in x and in y, and
+    # their rotor discs (radius 0.2 span, at least 1.5 px) reach beyond them on each side.
+    patch, cover = draw_multirotor(span, 4, 90.0, 0.0, (200, 200, 200), gear=False)
+    assert patch.shape[:2] == cover.shape and 0.0 <= cover.min() and cover.max() <= 1.0
+    width, height = _extent(cover)
+    expected = span * np.cos(np.radians(45)) + 2 * max(0.2 * span, 1.5)
+    assert abs(width - expected) <= 2.5 and abs(height - expected) <= 2.5
+
+
+def test_a_lower_view_squashes_the_drone_and_more_arms_fill_it():
+    _, high = draw_multirotor(60.0, 4, 75.0, 0.0, (30, 30, 30), gear=False)
+    _, low = draw_multirotor(60.0, 4, 20.0, 0.0, (30, 30, 30), gear=False)
+    assert _extent(low)[1] < 0.6 * _extent(high)[1]
+    assert abs(_extent(low)[0] - _extent(high)[0]) <= 2
+    _, octo = draw_multirotor(60.0, 8, 75.0, 0.0, (30, 30, 30), gear=False)
+    assert (octo >= 0.25).sum() > (high >= 0.25).sum()
+
+
+def test_every_label_is_the_tight_box_of_a_drawn_drone():
+    pytest.importorskip("skimage", reason="the photo family's backgrounds are scikit-image's sample photographs")
+    from sitl.bench.photo_family import PhotoFamily
+
+    family = PhotoFamily(320, 240)
+    rng = np.random.default_rng(0)
+    for _ in range(10):
+        frame = family.sample(rng)
+        assert frame.image.shape == (240, 320, 3) and 1 <= len(frame.boxes) <= 2
+        for _, x0, y0, x1, y1 in frame.boxes:
+            assert 0 <= x0 < x1 <= 320 and 0 <= y0 < y1 <= 240 and x1 - x0 >= 3
