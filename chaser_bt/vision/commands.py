@@ -22,10 +22,11 @@ __all__ = ["add_command", "evaluate_folder"]
 
 
 def evaluate_folder(data_dir: str | Path, weights: str | Path, image_size: int, threads: int = 1, limit: int = 0,
-                    backend: str = "auto", class_agnostic: bool = False) -> dict:
+                    backend: str = "auto", class_agnostic: bool = False, failures: str | Path | None = None) -> dict:
     """Metrics (model card) and frames/s of the detector on a YOLO folder at ``image_size``;
     ``class_agnostic`` scores every box as one class (footage labelled ``drone`` against a detector
-    that tells drone designs apart), else the folder's classes must be the detector's."""
+    that tells drone designs apart), else the folder's classes must be the detector's; ``failures``
+    names a PNG to draw the worst false boxes and misses at 0.25 into."""
     from chaser_bt.vision.detector.evaluate import (
         evaluate_detections,
         frames_per_second,
@@ -62,6 +63,11 @@ def evaluate_folder(data_dir: str | Path, weights: str | Path, image_size: int, 
                 rows.append([0 if class_agnostic else int(c), cx - bw / 2, cy - bh / 2, cx + bw / 2, cy + bh / 2])
         gts.append(np.array(rows, float).reshape(-1, 5))
     m = evaluate_detections(preds, gts, len(names))
+    if failures is not None:
+        from chaser_bt.vision.detector.failures import failure_sheet, find_failures
+
+        if not cv2.imwrite(str(failures), failure_sheet(find_failures(preds, gts, 0.25), paths)):
+            raise ValueError(f"--failures {failures}: could not be written (a .png path in an existing folder)")
     det.conf_threshold = 0.25
     fps = frames_per_second(det, frames[:60])
     return {"images": len(paths), "image_size": image_size, "backend": det.backend, "ap50": m.ap50, "ap50_per_class": {names[k]: v for k, v in m.ap50_per_class.items()},
@@ -177,7 +183,7 @@ def _eval(args: argparse.Namespace) -> int:
     try:
         _check_weights(args.weights or DEFAULT_WEIGHTS)
         results = [evaluate_folder(args.data, args.weights or DEFAULT_WEIGHTS, s, args.threads, args.limit, args.backend,
-                                   args.class_agnostic) for s in args.sizes]
+                                   args.class_agnostic, args.failures if k == 0 else None) for k, s in enumerate(args.sizes)]
     except (ValueError, FileNotFoundError) as e:
         print(f"chaser-bt: {e}", file=sys.stderr)
         return 2
@@ -328,6 +334,8 @@ def add_command(subparsers) -> None:
     e.add_argument("--threads", type=positive_int, default=1, metavar="N", help="torch threads (default 1)")
     e.add_argument("--class-agnostic", action="store_true",
                    help="score every box as one class (footage labelled 'drone'; default: the folder's classes must be the detector's)")
+    e.add_argument("--failures", default=None, type=output_file, metavar="FILE.png",
+                   help="draw the highest-scoring false boxes and the largest misses at 0.25, at the first size, into this picture")
     e.add_argument("--limit", type=non_negative_int, default=0, metavar="N", help="use the first N images only (default 0: all)")
     e.add_argument("--backend", choices=["auto", "torch", "onnx", "onnx-int8"], default="auto",
                    help="auto: the int8 ONNX copy when a current .int8.onnx file is beside the weights, else the "
