@@ -14,11 +14,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
 
-__all__ = ["PHOTOS", "PhotoFamily", "PhotoFrame", "draw_multirotor"]
+__all__ = ["PHOTOS", "PhotoFamily", "PhotoFrame", "draw_multirotor", "write_folder"]
 
 #: scikit-image's sample photographs used as backgrounds (``skimage.data.<name>``).
 PHOTOS = ("grass", "gravel", "brick", "rocket", "camera")
@@ -139,3 +140,35 @@ class PhotoFamily:
         ok, jpg = cv2.imencode(".jpg", np.clip(img, 0, 255).astype(np.uint8), [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(80, 96))])
         assert ok
         return PhotoFrame(cv2.imdecode(jpg, cv2.IMREAD_COLOR), np.array(boxes, float).reshape(-1, 5))
+
+
+def write_folder(out: str | Path, count: int, seed: int) -> Path:
+    """``count`` frames of the family as a YOLO folder (class ``drone``) that ``chaser-bt eval-detector
+    --class-agnostic`` reads; seed 780 draws the benchmark's frames."""
+    from chaser_bt.vision.footage.yolo_folder import box_line, prepare_parts, write_example
+
+    root = Path(out)
+    prepare_parts(root, ("",), ("drone",))
+    family, rng = PhotoFamily(), np.random.default_rng(seed)
+    for k in range(count):
+        frame = family.sample(rng)
+        h, w = frame.image.shape[:2]
+        lines = [box_line(0, x0, y0, x1, y1, w, h) for _, x0, y0, x1, y1 in frame.boxes]
+        write_example(root, f"photo_{k:06d}", frame.image, [x for x in lines if x is not None])
+    return root
+
+
+def main(argv: list[str] | None = None) -> int:
+    import argparse
+
+    p = argparse.ArgumentParser(prog="python -m sitl.bench.photo_family", description=write_folder.__doc__)
+    p.add_argument("out")
+    p.add_argument("--count", type=int, default=150)
+    p.add_argument("--seed", type=int, default=780)
+    args = p.parse_args(argv)
+    print(write_folder(args.out, args.count, args.seed))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -44,3 +44,15 @@ def test_every_label_is_the_tight_box_of_a_drawn_drone():
         assert frame.image.shape == (240, 320, 3) and 1 <= len(frame.boxes) <= 2
         for _, x0, y0, x1, y1 in frame.boxes:
             assert 0 <= x0 < x1 <= 320 and 0 <= y0 < y1 <= 240 and x1 - x0 >= 3
+
+
+def test_the_family_writes_a_folder_eval_detector_reads(tmp_path):
+    pytest.importorskip("skimage", reason="the photo family's backgrounds are scikit-image's sample photographs")
+    from sitl.bench.photo_family import write_folder
+
+    root = write_folder(tmp_path / "photo", 3, seed=1)
+    assert (root / "classes.txt").read_text() == "drone\n"
+    assert sorted(p.stem for p in (root / "images").glob("*.jpg")) == ["photo_000000", "photo_000001", "photo_000002"]
+    for label in (root / "labels").glob("*.txt"):
+        rows = [line.split() for line in label.read_text().splitlines()]
+        assert 1 <= len(rows) <= 2 and all(r[0] == "0" and all(0 < float(v) <= 1 for v in r[1:]) for r in rows)
