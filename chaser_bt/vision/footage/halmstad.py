@@ -219,7 +219,7 @@ def _class_ids(classes: Sequence[str], rename: Mapping[str, str]) -> dict[str, i
 
 
 def import_halmstad(root: str | Path, out_dir: str | Path, classes: Sequence[str] = ("drone",),
-                    rename: Mapping[str, str] | None = None, every: int = 10, val_frac: float = 0.15, seed: int = 0,
+                    rename: Mapping[str, str] | None = None, every: int = 10, val_frac: float = 0.2, seed: int = 0,
                     parts: Sequence[str] = PARTS, min_box_px: float = 1.0, preview: int = 0, jpeg_quality: int = 95,
                     labels_reader: Callable[[Path], list[FrameLabels]] | None = None,
                     progress: Callable[[int, int, str], None] | None = None) -> HalmstadSummary:
