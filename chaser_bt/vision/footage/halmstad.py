@@ -253,8 +253,7 @@ def import_halmstad(root: str | Path, out_dir: str | Path, classes: Sequence[str
     videos, missing = find_videos(root)
     part_of = split_videos(videos, val_frac, seed)
     chosen = [v for v in videos if part_of[v.name] in parts]
-    prepare_parts(out, parts, classes, [f"{v.name}_{0:06d}" for v in chosen], create=False)
-    prepare_parts(out, parts, classes)
+    prepare_parts(out, parts, classes, [f"{v.name}_{0:06d}" for v in chosen])
     labels_reader = labels_reader or read_labels
     summary = HalmstadSummary(str(root), classes, every, skipped=list(missing))
     dropped: Counter[str] = Counter()

@@ -122,12 +122,11 @@ def import_footage(export: str | Path, out_dir: str | Path, video: str | Path | 
         summary = ImportSummary(str(export), labels.format, out_classes, frames=len(labels.frames))
         train, val = chunk_split([f.frame for f in labels.frames], chunk, val_frac, seed)
         part_of = {i: "train" for i in train} | {i: "val" for i in val}
-        prepare_parts(out, ("train", "val"), out_classes, [f"{prefix}{f.frame:06d}" for f in labels.frames], create=False)
         source = VideoFrames(video, video_start, video_step) if video is not None else None  # a bad video: nothing written
-        prepare_parts(out, ("train", "val"), out_classes)
         dropped: Counter[str] = Counter()
         chunks: dict[str, set[int]] = {"train": set(), "val": set()}
         try:
+            prepare_parts(out, ("train", "val"), out_classes, [f"{prefix}{f.frame:06d}" for f in labels.frames])
             for i, frame in enumerate(labels.frames):
                 img, why = _pixels(frame, archive, source)
                 if img is None:

@@ -15,10 +15,9 @@ from chaser_bt.vision.footage.cvat import FootageError
 __all__ = ["box_line", "draw_preview", "prepare_parts", "write_example"]
 
 
-def prepare_parts(out: Path, parts: Sequence[str], classes: Sequence[str], stems: Sequence[str] = (),
-                  create: bool = True) -> None:
-    """Check that ``out/<part>`` can take this import, then (``create``) make its ``images`` and
-    ``labels`` and write ``classes.txt``.
+def prepare_parts(out: Path, parts: Sequence[str], classes: Sequence[str], stems: Sequence[str] = ()) -> None:
+    """Check that ``out/<part>`` can take this import, then make its ``images`` and ``labels`` and write
+    ``classes.txt``.
 
     Raises:
         FootageError: an earlier import into ``out`` has other classes, or already wrote one of ``stems``.
@@ -32,7 +31,7 @@ def prepare_parts(out: Path, parts: Sequence[str], classes: Sequence[str], stems
             taken = out / part / "images" / f"{stem}.jpg"
             if taken.exists():
                 raise FootageError(f"{taken} exists: an earlier import wrote it (give this one another --prefix)")
-    for part in parts if create else ():
+    for part in parts:
         (out / part / "images").mkdir(parents=True, exist_ok=True)
         (out / part / "labels").mkdir(parents=True, exist_ok=True)
         (out / part / "classes.txt").write_text("\n".join(classes) + "\n")
