@@ -1,8 +1,8 @@
-"""Vision benchmark (issue 6): detector quality and speed on a held-out rendered set, pipeline rate,
+"""Vision benchmark: detector quality and speed on a held-out rendered set, pipeline rate,
 bearing error and range error in a follow sequence, renderer speed. Prints one JSON line.
 
 Held-out: ``sitl.bench.camera_dataset`` split "heldout" (other ground seeds, wider lighting), seed 777;
-the person detector (search and rescue) on a held-out person set, seed 778. Per domain (issue 16): the
+the person detector (search and rescue) on a held-out person set, seed 778. Per domain: the
 drone detector at 416 on held-out-split frames, half of them chase views, in the training camera-world
 families (meadow, farmland, arid, winter, suburb; keys ``*_families``) and in the held-out families
 (coast, moor; keys ``*_cross``), seed 779; the plain field is the first set; the person detector
@@ -17,7 +17,9 @@ one's on the same frames (the ratio is what to read on a shared machine). The pi
 auto backend (int8 when current).
 Photographs (``*_416_photo``): the drone detector at 416, class-agnostic, on 300 frames (120 with
 ``--quick``) of the ``photo`` family (``sitl.bench.photo_family``: drones drawn by their own code over
-scikit-image's sample photographs, a source nothing trains on), seed 780; null without scikit-image.
+scikit-image's sample photographs, a source nothing trains on), seed 780; the person detector likewise
+on 150 frames (30 with ``--quick``) of people drawn over the same photographs (``*_person_416_photo``), seed 780; null
+without scikit-image.
 Real footage (``*_real_heldout``): the drone detector at 416, class-agnostic, on the Halmstad
 drone-detection dataset's held-out third (``V_DRONE_077``-``114``, ``V_BIRD_035``-``051``,
 ``V_AIRPLANE_040``-``059``, ``V_HELICOPTER_041``-``061``; every 10th frame; birds, airplanes and helicopters
@@ -123,7 +125,8 @@ def _scores(dets: dict[str, Detector], frames: list, infix: str, classes: tuple[
 def person_metrics(n: int, seed: int, weights: str) -> dict:
     """AP@0.5 etc. of the person detector at 416 on held-out person frames: the plain field (seed ``seed``;
     keys ``*_person_416``) and, on ``n // 2`` frames each, the training and the held-out camera-world
-    families (seed ``seed + 1``; keys ``*_person_416_families``, ``*_person_416_cross``); {} without weights."""
+    families (seed ``seed + 1``; keys ``*_person_416_families``, ``*_person_416_cross``), and people drawn over
+    photographs (the ``photo`` family, seed ``seed + 2``; keys ``*_person_416_photo``); {} without weights."""
     from pathlib import Path
 
     if not Path(weights).exists():
@@ -134,6 +137,7 @@ def person_metrics(n: int, seed: int, weights: str) -> dict:
     for key, families in (("families", TRAINING_FAMILIES), ("cross", HELDOUT_FAMILIES)):
         frames = _render(DatasetRenderer("heldout", kinds=PERSON_CLASSES, families=families), n // 2, seed + 1)
         out.update(_scores(dets, frames, f"_person_416_{key}", PERSON_CLASSES))
+    out.update(photo_metrics(n // 2, seed + 2, weights, kind="person"))
     for v, det in dets.items():
         det.conf_threshold = 0.25
         out[f"fps_person_416{v}"] = round(frames_per_second(det, [f.image for f in plain[: min(n, 100)]]), 1)
@@ -196,24 +200,26 @@ def render_fps(n: int) -> float:
     return n / (time.perf_counter() - t0)
 
 
-def photo_metrics(n: int, seed: int, weights: str) -> dict:
-    """AP@0.5, precision, recall and IoU (keys ``*_416_photo`` and their ``_int8``) of the drone detector,
-    class-agnostic, on ``n`` frames of the ``photo`` family; nulls without scikit-image."""
+def photo_metrics(n: int, seed: int, weights: str, kind: str = "drone") -> dict:
+    """AP@0.5, precision, recall and IoU (keys ``*_416_photo``, ``*_person_416_photo`` for people, and their
+    ``_int8``) of the drone or person detector, class-agnostic, on ``n`` frames of the ``photo`` family of
+    ``kind``; nulls without scikit-image."""
+    infix = "_416_photo" if kind == "drone" else "_person_416_photo"
     try:
         from sitl.bench.photo_family import PhotoFamily
 
-        family = PhotoFamily()
+        family = PhotoFamily(kind=kind)
     except ImportError:
-        print("bench_vision: no scikit-image (pip install scikit-image): *_416_photo are null", file=sys.stderr)
-        return dict.fromkeys(f"{m}_416_photo{v}" for v in ("", "_int8") for m in ("ap50", "p", "r", "iou"))
+        print(f"bench_vision: no scikit-image (pip install scikit-image): *{infix} are null", file=sys.stderr)
+        return dict.fromkeys(f"{m}{infix}{v}" for v in ("", "_int8") for m in ("ap50", "p", "r", "iou"))
     rng = np.random.default_rng(seed)
     frames = [family.sample(rng) for _ in range(n)]
     out = {}
     for v, det in variants(weights, image_size=416, conf_threshold=0.005, threads=1).items():
         preds = [[(d.box, d.score, 0) for d in det(f.image)] for f in frames]
         m = evaluate_detections(preds, [f.boxes for f in frames], 1)
-        out.update({f"ap50_416_photo{v}": round(m.ap50, 4), f"p_416_photo{v}": round(m.precision, 4),
-                    f"r_416_photo{v}": round(m.recall, 4), f"iou_416_photo{v}": round(m.iou, 4)})
+        out.update({f"ap50{infix}{v}": round(m.ap50, 4), f"p{infix}{v}": round(m.precision, 4),
+                    f"r{infix}{v}": round(m.recall, 4), f"iou{infix}{v}": round(m.iou, 4)})
     return out
 
 

@@ -1,11 +1,11 @@
-"""The ``photo`` family's drones: drawn to the asked span and view, and labelled by their drawn pixels."""
+"""The ``photo`` family: drones and people drawn to the asked size and view, labelled by their drawn pixels."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from sitl.bench.photo_family import draw_multirotor
+from sitl.bench.photo_family import draw_multirotor, draw_person
 
 
 def _extent(cover: np.ndarray) -> tuple[int, int]:
@@ -52,7 +52,45 @@ def test_the_family_writes_a_folder_eval_detector_reads(tmp_path):
 
     root = write_folder(tmp_path / "photo", 3, seed=1)
     assert (root / "classes.txt").read_text() == "drone\n"
-    assert sorted(p.stem for p in (root / "images").glob("*.jpg")) == ["photo_000000", "photo_000001", "photo_000002"]
+    assert sorted(p.stem for p in (root / "images").glob("*.jpg")) == ["photo_drone_000000", "photo_drone_000001", "photo_drone_000002"]
     for label in (root / "labels").glob("*.txt"):
         rows = [line.split() for line in label.read_text().splitlines()]
         assert 1 <= len(rows) <= 2 and all(r[0] == "0" and all(0 < float(v) <= 1 for v in r[1:]) for r in rows)
+
+
+def test_a_person_lying_seen_from_straight_above_is_their_height_long():
+    # Lying along the image x axis (yaw 0), orthographic from 90 deg: feet to the top of the head is
+    # 1.75 m plus the hair's overhang, drawn at length_px per 1.75 m; across: shoulders and arms.
+    length = 60.0
+    _, cover = draw_person(length, lying=True, elevation_deg=90.0, yaw_deg=0.0, top=(30, 30, 180), legs=(90, 60, 40),
+                           skin=(160, 190, 230))
+    width, height = _extent(cover)
+    assert 0.95 * length <= width <= 1.1 * length
+    assert height < 0.45 * length
+
+
+def test_a_person_standing_is_a_small_blob_from_above_and_tall_from_a_low_view():
+    length = 60.0
+    kwargs = dict(lying=False, yaw_deg=0.0, top=(30, 30, 180), legs=(90, 60, 40), skin=(160, 190, 230))
+    _, above = draw_person(length, elevation_deg=90.0, **kwargs)
+    _, low = draw_person(length, elevation_deg=25.0, **kwargs)
+    assert max(_extent(above)) < 0.45 * length
+    # Seen from 25 deg above, 1.75 m of height spans cos(25 deg) of its length, plus head and shoes.
+    assert 0.85 * np.cos(np.radians(25)) * length <= _extent(low)[1] <= 1.15 * length
+
+
+def test_an_unknown_kind_is_refused():
+    pytest.importorskip("skimage", reason="the photo family's backgrounds are scikit-image's sample photographs")
+    from sitl.bench.photo_family import PhotoFamily
+
+    with pytest.raises(ValueError, match="one of drone, person"):
+        PhotoFamily(kind="car")
+
+
+def test_the_person_family_labels_people(tmp_path):
+    pytest.importorskip("skimage", reason="the photo family's backgrounds are scikit-image's sample photographs")
+    from sitl.bench.photo_family import write_folder
+
+    root = write_folder(tmp_path / "people", 2, seed=3, kind="person")
+    assert (root / "classes.txt").read_text() == "person\n"
+    assert sorted(p.stem for p in (root / "images").glob("*.jpg")) == ["photo_person_000000", "photo_person_000001"]

@@ -14,7 +14,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["Part", "TargetModel", "TARGET_MODELS", "PERSON_VARIANTS", "PERSON_HEIGHT_M", "model_for", "variant_count"]
+import numpy as np
+
+__all__ = ["Part", "TargetModel", "TARGET_MODELS", "PERSON_VARIANTS", "PERSON_HEIGHT_M", "model_for", "variant_count",
+           "random_multirotor"]
 
 
 @dataclass(frozen=True)
@@ -125,3 +128,55 @@ def variant_count(kind: str) -> int:
     """How many colour variants ``kind`` has (1 for the airframes)."""
     model_for(kind)
     return len(_VARIANTS.get(kind, (None,)))
+
+
+# Finishes of small multirotors (BGR): white and grey shells, black carbon, bright plastics.
+_SHELLS = ((235, 235, 240), (200, 200, 205), (150, 150, 155), (90, 90, 95), (35, 35, 40), (40, 40, 190),
+           (30, 120, 240), (40, 200, 220), (170, 90, 30), (60, 140, 60))
+
+
+def random_multirotor(rng: np.random.Generator) -> TargetModel:
+    """A multirotor of a random design (kind "multirotor"), for training data that is not two airframes:
+    3 (Y6, coaxial), 4, 6 or 8 arms in an X or + layout, 12-75 cm from the centre to a motor, coaxial
+    rotor pairs, propeller discs translucent as spinning blades are, a shell of one finish, arms of it
+    or of carbon, with or without landing gear (legs or skids) and a payload (gimbal or box) below."""
+    arms = int(rng.choice([3, 4, 4, 4, 6, 6, 8]))
+    coaxial = arms == 3 or bool(rng.random() < 0.15)
+    arm_r = float(np.exp(rng.uniform(np.log(0.12), np.log(0.75))))
+    shell = _SHELLS[int(rng.integers(len(_SHELLS)))]
+    arm_col = shell if rng.random() < 0.4 else (30, 30, 35)
+    motor = (25, 25, 30) if rng.random() < 0.7 else (170, 170, 175)
+    prop_r = arm_r * float(rng.uniform(0.35, 0.6)) * (1.0 if arms <= 4 else 0.8)
+    prop_col = (60, 60, 65) if rng.random() < 0.6 else (190, 190, 195)
+    prop_alpha = float(rng.uniform(0.25, 0.6))
+    offset = 0.5 if rng.random() < 0.75 else 0.0  # X or + layout
+    parts: list[Part] = []
+    for k in range(arms):
+        a = (k + offset) * 2.0 * math.pi / arms
+        tip = (arm_r * math.cos(a), arm_r * math.sin(a), 0.0)
+        parts.append(Part("rod", (0.0, 0.0, 0.0), arm_r * 0.05, arm_col, b=tip))
+        parts.append(Part("sphere", (tip[0], tip[1], arm_r * 0.05), arm_r * 0.08, motor))
+        for z in ((arm_r * 0.15, -arm_r * 0.1) if coaxial else (arm_r * 0.15,)):
+            parts.append(Part("disc", (tip[0], tip[1], z), prop_r, prop_col, alpha=prop_alpha))
+    body = arm_r * float(rng.uniform(0.22, 0.4))
+    parts.append(Part("sphere", (body * 0.3, 0.0, 0.0), body, shell))
+    parts.append(Part("sphere", (-body * 0.3, 0.0, 0.0), body * 0.9, shell))
+    height = body * 2
+    if rng.random() < 0.5:  # landing gear: four legs or two skids
+        drop = arm_r * float(rng.uniform(0.3, 0.6))
+        gear = (200, 200, 200) if rng.random() < 0.4 else (30, 30, 35)
+        if rng.random() < 0.5:
+            for sx in (-1.0, 1.0):
+                for sy in (-1.0, 1.0):
+                    parts.append(Part("rod", (sx * body * 0.6, sy * body * 0.6, 0.0), arm_r * 0.02, gear,
+                                      b=(sx * body * 1.1, sy * body * 1.1, -drop)))
+        else:
+            for sy in (-1.0, 1.0):
+                parts.append(Part("rod", (0.0, sy * body * 0.5, 0.0), arm_r * 0.02, gear, b=(0.0, sy * body, -drop)))
+                parts.append(Part("rod", (-body * 1.2, sy * body, -drop), arm_r * 0.02, gear, b=(body * 1.2, sy * body, -drop)))
+        height = body + drop
+    if rng.random() < 0.5:  # payload: a gimbal camera or a box
+        size = body * float(rng.uniform(0.4, 0.8))
+        parts.append(Part("sphere", (body * 0.4, 0.0, -body - size * 0.5), size, (40, 40, 45) if rng.random() < 0.6 else shell))
+        height = max(height, body + 1.5 * size)
+    return TargetModel("multirotor", tuple(parts), span_m=2 * (arm_r + prop_r), height_m=height)

@@ -34,7 +34,7 @@ from sitl.world.camera.scene import GroundScene
 from sitl.world.camera.sky import Sky
 from sitl.world.camera.world import CameraWorld
 
-__all__ = ["Lighting", "TargetPose", "TargetLabel", "RenderedFrame", "Renderer", "Region", "attitude_from_velocity", "viewports"]
+__all__ = ["Lighting", "TargetPose", "TargetLabel", "RenderedFrame", "Renderer", "Region", "attitude_from_velocity", "viewports", "compile_model", "draw_model"]
 
 _DISC_SIDES = 12
 _COARSE = 4  # sky and haze grid step (pixels)
@@ -102,7 +102,8 @@ class _CompiledModel:
     disc_alpha: np.ndarray
 
 
-def _compile(model: TargetModel) -> _CompiledModel:
+def compile_model(model: TargetModel) -> _CompiledModel:
+    """``model``'s primitives as arrays, ready for :func:`draw_model` (compile once, draw many times)."""
     def pick(shape: str):
         return [p for p in model.parts if p.shape == shape]
 
@@ -167,7 +168,7 @@ class Renderer:
 
     def _model(self, kind: str, variant: int = 0) -> _CompiledModel:
         if (kind, variant) not in self._models:
-            self._models[(kind, variant)] = _compile(model_for(kind, variant))
+            self._models[(kind, variant)] = compile_model(model_for(kind, variant))
         return self._models[(kind, variant)]
 
     def render(self, vehicle_pos_enu: np.ndarray, body_attitude: Rotation, targets: Sequence[TargetPose],
@@ -370,72 +371,84 @@ class Renderer:
         labels = []
         for i in order:
             t = targets[i]
-            m = self._model(t.kind, t.variant)
-            rot = t.attitude.as_matrix()
-            pos = np.asarray(t.position_enu, float)
-
-            def to_cam(p: np.ndarray) -> np.ndarray:
-                return (p.reshape(-1, 3) @ rot.T + pos - c_enu) @ r_ce
-
-            centre_c = to_cam(np.zeros(3))[0]
-            if centre_c[2] < 0.3:
+            drawn = draw_model(img, self._model(t.kind, t.variant), t.attitude.as_matrix(), np.asarray(t.position_enu, float),
+                               r_ce, c_enu, (fx, fy), sun, brightness)
+            if drawn is None:
                 continue
-            rng_m = float(np.linalg.norm(centre_c))
-            sc, rc_a, rc_b = to_cam(m.sphere_c), to_cam(m.rod_a), to_cam(m.rod_b)
-            dc = to_cam(m.disc_pts).reshape(-1, _DISC_SIDES, 3)
-            if np.concatenate([sc[:, 2], rc_a[:, 2], rc_b[:, 2], dc[..., 2].ravel()]).min() < 0.05:
-                continue  # part of the target is behind the lens: too close to draw
-
-            def px(c: np.ndarray) -> np.ndarray:
-                return np.stack([0.5 * w + fx * c[..., 0] / c[..., 2], 0.5 * h + fy * c[..., 1] / c[..., 2]], axis=-1)
-
-            ps, pa, pb, pd = px(sc), px(rc_a), px(rc_b), px(dc)
-            rs = m.sphere_r * fx / sc[:, 2]
-            rr = m.rod_r * fx / (0.5 * (rc_a[:, 2] + rc_b[:, 2]))
-            lo = np.min(np.vstack([ps - rs[:, None], np.minimum(pa, pb) - rr[:, None], pd.reshape(-1, 2)]), axis=0)
-            hi = np.max(np.vstack([ps + rs[:, None], np.maximum(pa, pb) + rr[:, None], pd.reshape(-1, 2)]), axis=0)
+            lo, hi, centre_px, rng_m = drawn
             x0, y0 = max(lo[0], 0.0), max(lo[1], 0.0)
             x1, y1 = min(hi[0], float(w)), min(hi[1], float(h))
-            if x1 - x0 < 1.0 or y1 - y0 < 1.0:
-                continue
-            # Lighting: top surfaces catch the sun, the rest sees sky light.
-            up_body = rot[:, 2]
-            shade = brightness * (0.55 + 0.45 * max(0.0, float(up_body @ sun)))
-            self._draw_model(img, m, ps, rs, pa, pb, rr, pd, sc[:, 2], 0.5 * (rc_a[:, 2] + rc_b[:, 2]), dc[..., 2].mean(axis=1), shade)
-            cpx = px(centre_c)
             truncated = bool(lo[0] < 0 or lo[1] < 0 or hi[0] > w or hi[1] > h)
-            labels.append(TargetLabel(i, t.kind, (float(x0), float(y0), float(x1), float(y1)),
-                                      (float(cpx[0]), float(cpx[1])), rng_m, truncated))
+            labels.append(TargetLabel(i, t.kind, (float(x0), float(y0), float(x1), float(y1)), centre_px, rng_m, truncated))
         return tuple(sorted(labels, key=lambda lab: lab.index))
 
-    @staticmethod
-    def _draw_model(img, m: _CompiledModel, ps, rs, pa, pb, rr, pd, zs, zr, zd, shade: float) -> None:
-        s = 16.0  # fixed-point sub-pixel drawing (4 fractional bits)
-        items = [(z, 0, k) for k, z in enumerate(zs)] + [(z, 1, k) for k, z in enumerate(zr)] + [(z, 2, k) for k, z in enumerate(zd)]
-        items.sort(key=lambda it: -it[0])
-        sphere_cols, rod_cols, disc_cols = (np.clip(c * shade, 0, 255).tolist() for c in (m.sphere_col, m.rod_col, m.disc_col))
-        for _, kind, k in items:
-            if kind == 0:
-                col = tuple(sphere_cols[k])
-                cv2.circle(img, (int(ps[k, 0] * s), int(ps[k, 1] * s)), max(int(rs[k] * s), 8), col, -1, cv2.LINE_AA, 4)
-            elif kind == 1:
-                col = tuple(rod_cols[k])
-                cv2.line(img, (int(pa[k, 0] * s), int(pa[k, 1] * s)), (int(pb[k, 0] * s), int(pb[k, 1] * s)), col,
-                         max(int(round(2 * rr[k])), 1), cv2.LINE_AA, 4)
-            else:
-                poly = (pd[k] * s).astype(np.int32)
-                bx, by, bw, bh = cv2.boundingRect(poly)
-                bx0, by0 = max(bx // 16 - 1, 0), max(by // 16 - 1, 0)
-                bx1, by1 = min((bx + bw) // 16 + 2, img.shape[1]), min((by + bh) // 16 + 2, img.shape[0])
-                if bx1 <= bx0 or by1 <= by0:
-                    continue
-                roi = img[by0:by1, bx0:bx1]
-                layer = roi.copy()
-                col = tuple(disc_cols[k])
-                shifted = poly - np.array([bx0 * 16, by0 * 16], np.int32)
-                cv2.fillPoly(layer, [shifted], col, cv2.LINE_AA, 4)
-                a = float(m.disc_alpha[k])
-                cv2.addWeighted(layer, a, roi, 1.0 - a, 0.0, dst=roi)
+
+
+def draw_model(img: np.ndarray, m: _CompiledModel, rot: np.ndarray, pos: np.ndarray, r_ce: np.ndarray, c_enu: np.ndarray,
+               focal_px: tuple[float, float], sun: np.ndarray, brightness: float
+               ) -> tuple[np.ndarray, np.ndarray, tuple[float, float], float] | None:
+    """Draw compiled model ``m`` (body -> world rotation ``rot``, world position ``pos``) into ``img`` for a
+    pinhole camera at ``c_enu`` (optical -> world ``r_ce``, principal point at the image centre), lit by
+    ``sun`` at ``brightness``. Returns the unclipped pixel extent (lo, hi), the centre pixel and the range
+    (m), or None when the target is behind the lens, too close or outside the image."""
+    h, w = img.shape[:2]
+    fx, fy = focal_px
+
+    def to_cam(p: np.ndarray) -> np.ndarray:
+        return (p.reshape(-1, 3) @ rot.T + pos - c_enu) @ r_ce
+
+    centre_c = to_cam(np.zeros(3))[0]
+    if centre_c[2] < 0.3:
+        return None
+    sc, rc_a, rc_b = to_cam(m.sphere_c), to_cam(m.rod_a), to_cam(m.rod_b)
+    dc = to_cam(m.disc_pts).reshape(-1, _DISC_SIDES, 3)
+    if np.concatenate([sc[:, 2], rc_a[:, 2], rc_b[:, 2], dc[..., 2].ravel()]).min() < 0.05:
+        return None  # part of the target is behind the lens: too close to draw
+
+    def px(c: np.ndarray) -> np.ndarray:
+        return np.stack([0.5 * w + fx * c[..., 0] / c[..., 2], 0.5 * h + fy * c[..., 1] / c[..., 2]], axis=-1)
+
+    ps, pa, pb, pd = px(sc), px(rc_a), px(rc_b), px(dc)
+    rs = m.sphere_r * fx / sc[:, 2]
+    rr = m.rod_r * fx / (0.5 * (rc_a[:, 2] + rc_b[:, 2]))
+    lo = np.min(np.vstack([ps - rs[:, None], np.minimum(pa, pb) - rr[:, None], pd.reshape(-1, 2)]), axis=0)
+    hi = np.max(np.vstack([ps + rs[:, None], np.maximum(pa, pb) + rr[:, None], pd.reshape(-1, 2)]), axis=0)
+    if min(hi[0], float(w)) - max(lo[0], 0.0) < 1.0 or min(hi[1], float(h)) - max(lo[1], 0.0) < 1.0:
+        return None
+    # Lighting: top surfaces catch the sun, the rest sees sky light.
+    shade = brightness * (0.55 + 0.45 * max(0.0, float(rot[:, 2] @ sun)))
+    _paint_model(img, m, ps, rs, pa, pb, rr, pd, sc[:, 2], 0.5 * (rc_a[:, 2] + rc_b[:, 2]), dc[..., 2].mean(axis=1), shade)
+    cpx = px(centre_c)
+    return lo, hi, (float(cpx[0]), float(cpx[1])), float(np.linalg.norm(centre_c))
+
+
+def _paint_model(img: np.ndarray, m: _CompiledModel, ps, rs, pa, pb, rr, pd, zs, zr, zd, shade: float) -> None:
+    s = 16.0  # fixed-point sub-pixel drawing (4 fractional bits)
+    items = [(z, 0, k) for k, z in enumerate(zs)] + [(z, 1, k) for k, z in enumerate(zr)] + [(z, 2, k) for k, z in enumerate(zd)]
+    items.sort(key=lambda it: -it[0])
+    sphere_cols, rod_cols, disc_cols = (np.clip(c * shade, 0, 255).tolist() for c in (m.sphere_col, m.rod_col, m.disc_col))
+    for _, kind, k in items:
+        if kind == 0:
+            col = tuple(sphere_cols[k])
+            cv2.circle(img, (int(ps[k, 0] * s), int(ps[k, 1] * s)), max(int(rs[k] * s), 8), col, -1, cv2.LINE_AA, 4)
+        elif kind == 1:
+            col = tuple(rod_cols[k])
+            cv2.line(img, (int(pa[k, 0] * s), int(pa[k, 1] * s)), (int(pb[k, 0] * s), int(pb[k, 1] * s)), col,
+                     max(int(round(2 * rr[k])), 1), cv2.LINE_AA, 4)
+        else:
+            poly = (pd[k] * s).astype(np.int32)
+            bx, by, bw, bh = cv2.boundingRect(poly)
+            bx0, by0 = max(bx // 16 - 1, 0), max(by // 16 - 1, 0)
+            bx1, by1 = min((bx + bw) // 16 + 2, img.shape[1]), min((by + bh) // 16 + 2, img.shape[0])
+            if bx1 <= bx0 or by1 <= by0:
+                continue
+            roi = img[by0:by1, bx0:bx1]
+            layer = roi.copy()
+            col = tuple(disc_cols[k])
+            shifted = poly - np.array([bx0 * 16, by0 * 16], np.int32)
+            cv2.fillPoly(layer, [shifted], col, cv2.LINE_AA, 4)
+            a = float(m.disc_alpha[k])
+            cv2.addWeighted(layer, a, roi, 1.0 - a, 0.0, dst=roi)
 
 
 def viewports(regions: Sequence[Region] | None, width: int, height: int, margin_px: int = VIEW_MARGIN_PX,
