@@ -133,7 +133,7 @@ def _train_refiner(args: argparse.Namespace) -> int:
         make_refiner_set,
         train_refiner,
     )
-    from chaser_bt.vision.detector.train import load_yolo_folder
+    from chaser_bt.vision.detector.train import iter_yolo_folder
 
     torch.set_num_threads(args.threads)
     config = RefinerConfig(scores=args.negatives_from is not None)
@@ -149,12 +149,17 @@ def _train_refiner(args: argparse.Namespace) -> int:
         for folder in args.data:
             if not (Path(folder) / "images").is_dir():
                 raise ValueError(f"--data {folder}: no images/ folder (YOLO layout expected)")
-            images, boxes, _ = load_yolo_folder(folder, 640)  # 640 x 480 frames stay at full resolution
-            sets.append(make_refiner_set(images, boxes, config, args.per_label, rng))
-            if detect is not None:
-                negatives.append(make_negative_set(images, false_detections(detect, images, boxes), config))
-            print(f"{folder}: {len(sets[-1][0])} crops" + (f", {len(negatives[-1][0])} of false boxes" if negatives else ""),
-                  file=sys.stderr)
+            crops_before, negatives_before = sum(len(x[0]) for x in sets), sum(len(x[0]) for x in negatives)
+            # 640 x 480 frames stay at full resolution; a chunk of them is held at a time, only the crops kept.
+            for images, boxes in iter_yolo_folder(folder, 640):
+                sets.append(make_refiner_set(images, boxes, config, args.per_label, rng))
+                if detect is not None:
+                    negatives.append(make_negative_set(images, false_detections(detect, images, boxes), config))
+            crops = sum(len(x[0]) for x in sets) - crops_before
+            if crops == 0:
+                raise ValueError(f"--data {folder}: no labelled targets in its frames")
+            false = sum(len(x[0]) for x in negatives) - negatives_before
+            print(f"{folder}: {crops} crops" + (f", {false} of false boxes" if detect is not None else ""), file=sys.stderr)
     except (ValueError, FileNotFoundError) as e:
         print(f"chaser-bt: {e}", file=sys.stderr)
         return 2

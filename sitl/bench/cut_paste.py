@@ -6,8 +6,8 @@ model drawing (:func:`sitl.world.camera.renderer.draw_model`), seen from 70 degr
 tilted as a flying multirotor is, 4-80 px across, lit by a random sun, sometimes backlit to a
 silhouette or faded by haze; the coverage of each pixel comes from a second, white drawing, so the
 paste is anti-aliased and the spinning rotors stay translucent. A label is the tight box of the
-pixels at least 20 % covered. For the search-and-rescue detector the same is done with the renderer's
-people, standing or lying, seen from 25-88 degrees above over ground photographs. Birds (dark or pale, wings up, down or spread), drawn here, are pasted
+pixels at least 20 % covered. For the search-and-rescue detector the same is done with people of
+random build and dress, standing or lying, seen from 25-88 degrees above over ground photographs. Birds (dark or pale, wings up, down or spread), drawn here, are pasted
 unlabelled as the negatives they are in the field.
 
 The backgrounds are the user's photographs (:class:`PhotoLibrary`): folders, image files, or zip
@@ -31,7 +31,7 @@ import numpy as np
 
 from scipy.spatial.transform import Rotation
 
-from sitl.world.camera.models import PERSON_HEIGHT_M, TargetModel, model_for, random_multirotor, variant_count
+from sitl.world.camera.models import PERSON_HEIGHT_M, TargetModel, random_multirotor, random_person
 from sitl.world.camera.renderer import compile_model, draw_model
 
 __all__ = ["RESERVED_SOURCES", "KINDS", "PhotoLibrary", "CutPasteFrame", "CutPaste", "draw_drone", "draw_person", "write_folder"]
@@ -163,15 +163,16 @@ def draw_drone(rng: np.random.Generator, span_px: float) -> tuple[np.ndarray, np
 
 
 def draw_person(rng: np.random.Generator, length_px: float) -> tuple[np.ndarray, np.ndarray]:
-    """One of the renderer's people, 1.75 m drawn ``length_px`` long, standing or lying (on the back or the
-    front), seen from 25-88 degrees above as a searching drone sees them: (premultiplied patch, coverage)."""
+    """A person of a random build and dress (:func:`~sitl.world.camera.models.random_person`), 1.75 m drawn
+    ``length_px`` long, standing or lying (on the back or the front), seen from 25-88 degrees above as a
+    searching drone sees them: (premultiplied patch, coverage)."""
     def on_ground(r: np.random.Generator) -> np.ndarray:
         yaw = r.uniform(-math.pi, math.pi)
         if r.random() < 0.5:
             return Rotation.from_euler("Z", [yaw]).as_matrix()
         return Rotation.from_euler("ZX", [yaw, r.choice([-1.0, 1.0]) * math.pi / 2]).as_matrix()  # on the back or front
 
-    person = replace(model_for("person", int(rng.integers(variant_count("person")))), span_m=PERSON_HEIGHT_M)
+    person = replace(random_person(rng), span_m=PERSON_HEIGHT_M)
     return _draw(person, rng, length_px, (25.0, 88.0), on_ground, np.array([0.0, 0.0, PERSON_HEIGHT_M / 2]))
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
+import cv2
 import numpy as np
 import py_trees
 import pytest
@@ -136,6 +137,37 @@ def test_train_refiner_writes_a_refiner_the_detector_can_load(tmp_path, capsys):
     img = np.full((480, 640, 3), 120, np.uint8)
     assert det.refiner is not None and det.refiner.backend == "onnx"  # the copy written beside it runs
     assert det.refiner.boxes(img, [(100.0, 100.0, 140.0, 120.0)]).shape == (1, 4)
+
+
+def test_a_folder_read_in_chunks_is_the_folder_read_whole_and_the_refiner_set_the_same(tmp_path):
+    from chaser_bt.vision.detector.refine import RefinerConfig, make_refiner_set
+    from chaser_bt.vision.detector.train import iter_yolo_folder, load_yolo_folder
+    from sitl.bench.camera_dataset import write_dataset
+
+    write_dataset(tmp_path / "d", 5, seed=4, split="train", ground_size_px=256)
+    images, boxes, _ = load_yolo_folder(tmp_path / "d", 640)
+    chunks = list(iter_yolo_folder(tmp_path / "d", 640, chunk=2))
+    assert [len(c[0]) for c in chunks] == [2, 2, 1]
+    assert all(np.array_equal(a, b) for a, b in zip(images, [im for c in chunks for im in c[0]]))
+    assert all(np.array_equal(a, b) for a, b in zip(boxes, [bx for c in chunks for bx in c[1]]))
+    # The refiner's crops, drawn chunk by chunk from one generator, are the whole folder's.
+    cfg = RefinerConfig()
+    whole = make_refiner_set(images, boxes, cfg, 3, np.random.default_rng(1))
+    rng = np.random.default_rng(1)
+    parts = [make_refiner_set(ims, bxs, cfg, 3, rng) for ims, bxs in chunks]
+    assert all(np.array_equal(w, np.concatenate(ps)) for w, ps in zip(whole, zip(*parts)))
+
+
+def test_train_refiner_on_a_folder_without_labels_says_so(tmp_path, capsys):
+    from chaser_bt.vision.commands import add_command
+
+    (tmp_path / "d" / "images").mkdir(parents=True)
+    (tmp_path / "d" / "classes.txt").write_text("drone\n")
+    cv2.imwrite(str(tmp_path / "d" / "images" / "a.jpg"), np.full((48, 64, 3), 90, np.uint8))
+    parser = argparse.ArgumentParser()
+    add_command(parser.add_subparsers())
+    args = parser.parse_args(["train-refiner", "--data", str(tmp_path / "d"), "--out", str(tmp_path / "r.pt")])
+    assert args.handler(args) == 2 and "no labelled targets" in capsys.readouterr().err
 
 
 def test_train_refiner_with_negatives_from_a_detector_writes_a_scoring_refiner(tmp_path, capsys):

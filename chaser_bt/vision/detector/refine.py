@@ -210,8 +210,9 @@ def make_refiner_set(images: Sequence[np.ndarray], boxes: Sequence[np.ndarray], 
                      rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Crops (N, P, P, 3), the jittered boxes they were cut around and the label boxes (both (N, 4),
     crop fractions) from frames and their (M, 5) class, x0, y0, x1, y1 labels: ``per_label`` crops
-    around jittered copies of each label."""
-    crops, given, targets = [], [], []
+    around jittered copies of each label (none for labels under 2 px, or frames without one)."""
+    crops = [np.zeros((0, config.input_px, config.input_px, 3), np.uint8)]
+    given, targets = [np.zeros((0, 4))], [np.zeros((0, 4))]
     for image, labels in zip(images, boxes):
         for lb in np.asarray(labels, float).reshape(-1, 5)[:, 1:]:
             if min(lb[2] - lb[0], lb[3] - lb[1]) < 2.0:
@@ -222,8 +223,6 @@ def make_refiner_set(images: Sequence[np.ndarray], boxes: Sequence[np.ndarray], 
             w = np.array(windows, float)
             given.append(_fractions(jittered, w))
             targets.append(_fractions(lb[None, :], w))
-    if not crops:
-        raise ValueError("no labelled targets in the frames given")
     return np.concatenate(crops), np.concatenate(given).astype(np.float32), np.concatenate(targets).astype(np.float32)
 
 

@@ -21,6 +21,7 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Iterator
 
 import cv2
 import numpy as np
@@ -30,7 +31,7 @@ from chaser_bt.vision.detector.augment import flip_horizontal, hsv_jitter, mixup
 from chaser_bt.vision.detector.loss import detection_loss
 from chaser_bt.vision.detector.model import DetectorConfig, TinyYolo
 
-__all__ = ["TrainConfig", "TrainingInterrupted", "load_yolo_folder", "train_detector"]
+__all__ = ["TrainConfig", "TrainingInterrupted", "iter_yolo_folder", "load_yolo_folder", "train_detector", "yolo_classes"]
 
 log = logging.getLogger(__name__)
 
@@ -65,31 +66,51 @@ class TrainConfig:
 
 def load_yolo_folder(data_dir: str | Path, image_size: int) -> tuple[list[np.ndarray], list[np.ndarray], tuple[str, ...]]:
     """Images (resized so the longest side is ``image_size``) and (N, 5) pixel boxes from a YOLO folder."""
-    root = Path(data_dir)
-    classes = tuple(x.strip() for x in (root / "classes.txt").read_text().splitlines() if x.strip())
     images, boxes = [], []
-    for img_path in sorted((root / "images").glob("*.jpg")):
-        img = cv2.imread(str(img_path), cv2.IMREAD_COLOR)
-        if img is None:
-            raise ValueError(f"{img_path}: not a readable image")
-        h, w = img.shape[:2]
-        s = image_size / max(h, w)
-        img = cv2.resize(img, (int(round(w * s)), int(round(h * s))), interpolation=cv2.INTER_AREA)
-        lab = root / "labels" / (img_path.stem + ".txt")
-        rows = []
-        for n, line in enumerate(lab.read_text().splitlines() if lab.exists() else [], 1):
-            parts = line.split()
-            if not parts:
-                continue
-            if len(parts) != 5:
-                raise ValueError(f"{lab}:{n}: expected 'class cx cy w h', got {line!r}")
-            c, cx, cy, bw, bh = int(parts[0]), *map(float, parts[1:])
-            rows.append([c, (cx - bw / 2) * img.shape[1], (cy - bh / 2) * img.shape[0], (cx + bw / 2) * img.shape[1], (cy + bh / 2) * img.shape[0]])
-        images.append(img)
-        boxes.append(np.array(rows, float).reshape(-1, 5))
-    if not images:
+    for chunk_images, chunk_boxes in iter_yolo_folder(data_dir, image_size):
+        images += chunk_images
+        boxes += chunk_boxes
+    return images, boxes, yolo_classes(data_dir)
+
+
+def yolo_classes(data_dir: str | Path) -> tuple[str, ...]:
+    """A YOLO folder's class names (``classes.txt``, one a line)."""
+    return tuple(x.strip() for x in (Path(data_dir) / "classes.txt").read_text().splitlines() if x.strip())
+
+
+def iter_yolo_folder(data_dir: str | Path, image_size: int, chunk: int = 256) -> Iterator[tuple[list[np.ndarray], list[np.ndarray]]]:
+    """:func:`load_yolo_folder`'s images and boxes, ``chunk`` frames at a time in the same order, so a
+    pass over a large folder holds one chunk in memory, not the whole folder."""
+    root = Path(data_dir)
+    paths = sorted((root / "images").glob("*.jpg"))
+    if not paths:
         raise ValueError(f"{root / 'images'}: no .jpg images")
-    return images, boxes, classes
+    for start in range(0, len(paths), chunk):
+        images, boxes = [], []
+        for img_path in paths[start:start + chunk]:
+            img = cv2.imread(str(img_path), cv2.IMREAD_COLOR)
+            if img is None:
+                raise ValueError(f"{img_path}: not a readable image")
+            h, w = img.shape[:2]
+            s = image_size / max(h, w)
+            img = cv2.resize(img, (int(round(w * s)), int(round(h * s))), interpolation=cv2.INTER_AREA)
+            images.append(img)
+            boxes.append(_read_labels(root / "labels" / (img_path.stem + ".txt"), img.shape[1], img.shape[0]))
+        yield images, boxes
+
+
+def _read_labels(lab: Path, width: int, height: int) -> np.ndarray:
+    """(N, 5) class, x0, y0, x1, y1 pixel boxes of a YOLO label file (none when it is absent)."""
+    rows = []
+    for n, line in enumerate(lab.read_text().splitlines() if lab.exists() else [], 1):
+        parts = line.split()
+        if not parts:
+            continue
+        if len(parts) != 5:
+            raise ValueError(f"{lab}:{n}: expected 'class cx cy w h', got {line!r}")
+        c, cx, cy, bw, bh = int(parts[0]), *map(float, parts[1:])
+        rows.append([c, (cx - bw / 2) * width, (cy - bh / 2) * height, (cx + bw / 2) * width, (cy + bh / 2) * height])
+    return np.array(rows, float).reshape(-1, 5)
 
 
 def sampling_weights(boxes: list[np.ndarray], small_box_px: float, small_weight: float) -> np.ndarray | None:

@@ -14,10 +14,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 __all__ = ["Part", "TargetModel", "TARGET_MODELS", "PERSON_VARIANTS", "PERSON_HEIGHT_M", "model_for", "variant_count",
-           "random_multirotor"]
+           "random_multirotor", "random_person"]
 
 
 @dataclass(frozen=True)
@@ -180,3 +181,47 @@ def random_multirotor(rng: np.random.Generator) -> TargetModel:
         parts.append(Part("sphere", (body * 0.4, 0.0, -body - size * 0.5), size, (40, 40, 45) if rng.random() < 0.6 else shell))
         height = max(height, body + 1.5 * size)
     return TargetModel("multirotor", tuple(parts), span_m=2 * (arm_r + prop_r), height_m=height)
+
+
+def _random_colour(rng: np.random.Generator) -> tuple[int, int, int]:
+    """A clothing colour (BGR): any hue, from washed-out to saturated, dark to light."""
+    hsv = np.uint8([[[rng.integers(0, 180), rng.integers(0, 256), rng.integers(30, 250)]]])
+    return tuple(int(c) for c in cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)[0, 0])
+
+
+def random_person(rng: np.random.Generator) -> TargetModel:
+    """A person of a random build and dress (kind "person"), standing up body +z, feet at the origin, for
+    training data beyond the seven fixed ones: 1.55-1.95 m, slim to broad, clothes of any colour
+    (trousers or shorts), arms down, out or one raised (waving), sometimes a backpack or a hat."""
+    k = float(rng.uniform(1.55, 1.95)) / PERSON_HEIGHT_M
+    torso_r = float(rng.uniform(0.13, 0.2))
+    shirt, trousers = _random_colour(rng), _random_colour(rng)
+    skin = ((140, 170, 215), (110, 140, 190), (70, 90, 120), (50, 65, 95))[int(rng.integers(4))]
+    hair = ((25, 25, 30), (30, 50, 80), (60, 100, 150), (170, 170, 175))[int(rng.integers(4))]
+    shorts = bool(rng.random() < 0.2)
+    spread = float(rng.uniform(0.0, 0.15))
+    pose = rng.choice(["down", "down", "out", "wave"])
+    parts: list[Part] = []
+    for side in (-1.0, 1.0):
+        foot = (0.05, side * (0.1 + spread), 0.0)
+        parts.append(Part("sphere", (foot[0], foot[1], 0.055), 0.055, (30, 30, 35)))
+        if shorts:
+            parts.append(Part("rod", (0.0, foot[1], 0.08), 0.06, skin, b=(0.0, side * 0.09, 0.55 * k)))
+            parts.append(Part("rod", (0.0, side * 0.09, 0.55 * k), 0.08, trousers, b=(0.0, side * 0.09, 0.9 * k)))
+        else:
+            parts.append(Part("rod", (0.0, foot[1], 0.08), 0.075, trousers, b=(0.0, side * 0.09, 0.9 * k)))
+        shoulder = (0.0, side * (torso_r + 0.04), 1.42 * k)
+        if pose == "out" or (pose == "wave" and side > 0):
+            hand = (0.05, side * (torso_r + 0.6 * k), (1.45 if pose == "out" else 2.0) * k)
+        else:
+            hand = (0.04, side * (torso_r + 0.09), 0.9 * k)
+        parts.append(Part("rod", shoulder, 0.05, shirt, b=hand))
+        parts.append(Part("sphere", hand, 0.045, skin))
+    parts.append(Part("rod", (0.0, 0.0, 0.95 * k), torso_r, shirt, b=(0.0, 0.0, 1.38 * k)))
+    parts.append(Part("rod", (0.0, -torso_r - 0.03, 1.42 * k), 0.07, shirt, b=(0.0, torso_r + 0.03, 1.42 * k)))
+    if rng.random() < 0.3:  # a backpack
+        parts.append(Part("sphere", (-torso_r - 0.05, 0.0, 1.2 * k), torso_r * 0.9, _random_colour(rng)))
+    parts.append(Part("sphere", (0.01, 0.0, 1.63 * k), 0.105, skin))
+    hat = rng.random() < 0.25
+    parts.append(Part("sphere", (-0.02, 0.0, 1.67 * k), 0.1 if hat else 0.095, _random_colour(rng) if hat else hair))
+    return TargetModel("person", tuple(parts), span_m=0.52, height_m=PERSON_HEIGHT_M * k)
