@@ -159,6 +159,9 @@ class VisionPipeline:
         self.detector_name = ""
         self.last_estimate: TargetEstimate | None = None
         self.focused_frames = 0
+        self._seen_attitude: Rotation | None = None  # the camera's attitude at the last frame processed
+        # (time, where the detector looks; None: the whole frame) of detector frames planned, not processed yet.
+        self._unseen_detections: list[tuple[float, Region | None]] = []
 
     def _bank(self) -> TrackerBank:
         self._bank_tuned = False
@@ -191,6 +194,7 @@ class VisionPipeline:
         self.last_estimate = None
         self.range_filter.reset()
         self.frames = 0
+        self._unseen_detections.clear()
 
     def plan(self, t: float, ownship: OwnshipPose, cue: TargetCue | None = None) -> FramePlan:
         """Decide what the frame at ``t`` is for (:class:`FramePlan`); :meth:`process` then takes that frame.
@@ -205,7 +209,14 @@ class VisionPipeline:
         window, judge = self._focus(ownship, att, cam, cue_enu) if detect else (None, True)
         regions: tuple[Region, ...] | None = None
         if not detect or window is not None:
-            regions = tuple(self._track_regions()) + (() if window is None else (window.region,))
+            regions = tuple(self._track_regions(att)) + (() if window is None else (window.region,))
+        if regions is not None and self._unseen_detections:
+            # A frame planned before an earlier detector frame is processed (a camera behind the tick)
+            # reads where that detector looked too: a track it starts will be looked for here.
+            unseen = [r for _, r in self._unseen_detections]
+            regions = None if None in unseen else regions + tuple(r for r in unseen if r is not None)
+        if detect:
+            self._unseen_detections.append((t, None if window is None else window.region))
         return FramePlan(att, cam, cue_enu, detect, window, judge, regions)
 
     def process(self, frame: Frame, ownship: OwnshipPose, target_range_m: float | None = None,
@@ -217,6 +228,8 @@ class VisionPipeline:
             plan = self.plan(frame.t, ownship, cue)
         image = frame.image
         att, cam, cue_enu = plan.attitude, plan.camera_enu, plan.cue_enu
+        # This frame, and any planned before it that never came, are no longer ahead.
+        self._unseen_detections = [u for u in self._unseen_detections if u[0] > frame.t]
         region = None
         if plan.detect:
             if plan.window is None:
@@ -234,6 +247,7 @@ class VisionPipeline:
         else:
             tracks = self.trackers.advance(image, frame.t)
         self.frames += 1
+        self._seen_attitude = att
         # A track the cue agrees with needs no second hit: the cue is the independent confirmation.
         need = 1 if cue_enu is not None else self.config.confirm_hits
         tracks = [tr for tr in tracks if frame.t - tr.t_detected <= self.config.max_track_age_s and tr.hits >= need]
@@ -285,7 +299,8 @@ class VisionPipeline:
         centre = expected = None
         track = self._followed()
         if track is not None:
-            centre, expected = track.centre, max(track.size)
+            x0, y0, x1, y1 = self._turned(np.array([track.box], float), attitude)[0]
+            centre, expected = ((x0 + x1) / 2, (y0 + y1) / 2), max(track.size)
         elif cue_enu is not None:
             px, front = self.projector.pixel_of(cue_enu[None], ownship.position_enu, attitude)
             rng = float(np.linalg.norm(cue_enu - camera_enu))
@@ -317,15 +332,30 @@ class VisionPipeline:
         gate = self._gate_rad(dist, _largest_sigma(cue_cov))
         return dist > 1e-6 and self.projector.angle_outside_rad(cue_enu, ownship.position_enu, attitude) > gate
 
-    def _track_regions(self) -> list[Region]:
-        """The neighbourhoods the trackers (and the box refiner) read around each track's box."""
+    def _track_regions(self, attitude: Rotation) -> list[Region]:
+        """The neighbourhoods the trackers (and the box refiner) read around each track's box, in a frame
+        taken at ``attitude``: around the box as last seen and where the camera's turn since moves it."""
         w, h = self.camera.width_px, self.camera.height_px
+        boxes = np.array([tr.box for tr in self.trackers.tracks], float).reshape(-1, 4)
         out = []
-        for tr in self.trackers.tracks:
-            x0, y0, x1, y1 = tr.box
+        for (x0, y0, x1, y1), (u0, v0, u1, v1) in zip(boxes, self._turned(boxes, attitude)):
             m = max(self.config.track_margin_px, x1 - x0, y1 - y0)
-            out.append((max(int(x0 - m), 0), max(int(y0 - m), 0), min(int(math.ceil(x1 + m)), w), min(int(math.ceil(y1 + m)), h)))
+            out.append((max(int(min(x0, u0) - m), 0), max(int(min(y0, v0) - m), 0),
+                        min(int(math.ceil(max(x1, u1) + m)), w), min(int(math.ceil(max(y1, v1) + m)), h)))
         return [r for r in out if r[2] > r[0] and r[3] > r[1]]
+
+    def _turned(self, boxes: np.ndarray, attitude: Rotation) -> np.ndarray:
+        """(N, 4) boxes of the last frame processed, moved to where they are seen at ``attitude``: each
+        box's centre keeps its bearing, so the camera's rotation since that frame moves it on the image
+        (a target's own motion and the camera's travel are left to the margins). Unchanged before any
+        frame, and for a centre the turn puts behind the camera."""
+        if self._seen_attitude is None or not len(boxes):
+            return boxes
+        centres = np.stack([(boxes[:, 0] + boxes[:, 2]) / 2, (boxes[:, 1] + boxes[:, 3]) / 2], axis=1)
+        bearings = self.projector.bearing_enu(centres, self._seen_attitude)
+        px, front = self.projector.pixel_of(1e4 * bearings, np.zeros(3), attitude)  # 10 km out: rotation only
+        shift = np.where(front[:, None] & np.isfinite(px), px - centres, 0.0)
+        return boxes + np.hstack([shift, shift])
 
     def _span_m(self) -> float:
         """The width expected of the target: the largest known width of the accepted classes (1 m if none is known)."""

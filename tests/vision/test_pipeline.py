@@ -217,6 +217,57 @@ def test_the_plan_asks_for_the_focus_window_then_the_tracks_neighbourhood():
     assert source.asked[2] is None
 
 
+def test_a_turn_of_the_camera_moves_the_tracks_neighbourhood_with_it():
+    from scipy.spatial.transform import Rotation
+
+    from chaser_bt.cue import TargetCue
+
+    cam = CameraModel(width_px=640, height_px=480, tilt_rad=0.0)
+    script = _Script([[((120.0, 140.0, 152.0, 172.0), 0.9)]])  # the frame's box (300, 230, 316, 246), as above
+    pipe = VisionPipeline(cam, script, PipelineConfig(detect_every=2, tracker_kinds=(), attitude_alpha=1.0, attitude_beta=0.0))
+    source = _RegionSource()
+    sensor = CameraSensor(source, pipe)
+    cue = TargetCue(0.0, np.array([100.0, 0.0, 10.0]), 4.0 * np.eye(3))
+    sensor.step(0.0, OwnshipPose(0.0, np.array([0.0, 0.0, 10.0]), np.zeros(3), Rotation.identity()), cue=cue)
+    # The aircraft yaws 5 deg left (ENU z up): a target that holds still slides right on the image by
+    # fx * tan(5 deg) at the image centre; the box's centre is 12 px left of it and 2 px up, so its
+    # ray's turn moves it by fx * (tan(atan(-12 / fx) + 5 deg) + 12 / fx), and a pixel or less up (off
+    # the axis, the ray's depth along it shrinks).
+    turned = Rotation.from_euler("z", math.radians(5.0))
+    sensor.step(0.1, OwnshipPose(0.1, np.array([0.0, 0.0, 10.0]), np.zeros(3), turned), cue=cue)
+    fx = cam.focal_px[0]
+    dx = fx * (math.tan(math.atan(-12.0 / fx) + math.radians(5.0)) + 12.0 / fx)
+    x0, y0, x1, y1 = source.asked[1][0]
+    # The neighbourhood holds the box as last seen and as turned, 64 px around both.
+    assert x0 == 236 and y0 in (165, 166)
+    assert x1 == math.ceil(316.0 + dx + 64.0) and x1 > 380 + 20
+    assert y1 == 310
+
+
+def test_a_frame_planned_before_a_detector_frame_is_processed_reads_where_that_detector_looked():
+    from scipy.spatial.transform import Rotation
+
+    cam = CameraModel(width_px=640, height_px=480, tilt_rad=0.0)
+    pipe = VisionPipeline(cam, _Script([[((300.0, 230.0, 316.0, 246.0), 0.9)]]),
+                          PipelineConfig(detect_every=3, tracker_kinds=(), focus=False))
+    pose = lambda t: OwnshipPose(t, np.array([0.0, 0.0, 10.0]), np.zeros(3), Rotation.identity())
+    image = np.zeros((480, 640, 3), np.uint8)
+
+    # A camera one frame behind the tick: frame k is planned, then frame k - 1 processed.
+    p0 = pipe.plan(0.0, pose(0.0))
+    p1 = pipe.plan(0.1, pose(0.1))  # a detector frame, whole: nothing tracked yet
+    assert p1.detect and p1.regions is None
+    pipe.process(Frame(0.0, image, 0), pose(0.0), plan=p0)  # frame 0's detection starts a track
+    # Frame 2 is planned before frame 1 is processed: a track frame 1's detector finds may be anywhere
+    # it looked, so frame 2 reads all of that (the whole frame), not only frame 0's track's neighbourhood.
+    p2 = pipe.plan(0.2, pose(0.2))
+    assert not p2.detect and p2.regions is None
+    pipe.process(Frame(0.1, image, 1), pose(0.1), plan=p1)
+    # Planned with no detector frame pending: the track's neighbourhood only (its box and 64 px around it).
+    p3 = pipe.plan(0.3, pose(0.3))
+    assert not p3.detect and p3.regions == ((236, 166, 380, 310),)
+
+
 def test_without_a_cue_or_a_track_the_detector_frame_is_read_whole():
     from scipy.spatial.transform import Rotation
 
