@@ -7,8 +7,9 @@ tilted as a flying multirotor is, 4-80 px across, lit by a random sun, sometimes
 silhouette or faded by haze; the coverage of each pixel comes from a second, white drawing, so the
 paste is anti-aliased and the spinning rotors stay translucent. A label is the tight box of the
 pixels at least 20 % covered. For the search-and-rescue detector the same is done with people of
-random build and dress, standing or lying, seen from 25-88 degrees above over ground photographs. Birds (dark or pale, wings up, down or spread), drawn here, are pasted
-unlabelled as the negatives they are in the field.
+random build and dress, standing or lying, seen from 25-88 degrees above over ground photographs.
+Birds (dark or pale, wings up, down or spread), drawn here, are pasted unlabelled as the negatives
+they are in the field.
 
 The backgrounds are the user's photographs (:class:`PhotoLibrary`): folders, image files, or zip
 archives such as a game's ``.pk3`` texture pack. The docs name Debian packages of landscape
@@ -28,7 +29,6 @@ from typing import Callable, Sequence
 
 import cv2
 import numpy as np
-
 from scipy.spatial.transform import Rotation
 
 from sitl.world.camera.models import PERSON_HEIGHT_M, TargetModel, random_multirotor, random_person
@@ -39,7 +39,7 @@ __all__ = ["RESERVED_SOURCES", "KINDS", "PhotoLibrary", "CutPasteFrame", "CutPas
 log = logging.getLogger(__name__)
 
 #: Path parts of the photograph sources kept for independent tests: never training backgrounds.
-RESERVED_SOURCES = ("skimage", "scikit-image", "scikit_image", "trigger-rally", "trigger_rally", "trigger")
+RESERVED_SOURCES = ("skimage", "scikit-image", "scikit_image", "trigger-rally", "trigger_rally")
 _IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".webp", ".bmp")
 #: Texture maps that are not pictures of anything (normal, gloss, specular, bump, height maps).
 _NOT_PICTURES = ("_nm.", "_gm.", "_sm.", "_bump", "_height", "_normal", "_spec", "_gloss")
@@ -54,8 +54,9 @@ def _reserved(path: str) -> bool:
 
 class PhotoLibrary:
     """Photographs to paste onto, read from ``sources`` (image files, folders searched recursively, zip
-    archives), each shrunk to at most ``max_side`` px, those narrower than ``min_side`` px dropped and
-    counted; at most ``limit`` (a seeded random choice) are kept in memory.
+    archives), each shrunk to at most ``max_side`` px, those unreadable or narrower than ``min_side`` px
+    dropped and counted (``dropped``), texture maps that are not pictures skipped and counted
+    (``maps_skipped``); at most ``limit`` (a seeded random choice) are kept in memory.
 
     Raises:
         ValueError: a source is one of :data:`RESERVED_SOURCES`, or no usable photograph was found.
@@ -65,8 +66,6 @@ class PhotoLibrary:
                  seed: int = 0) -> None:
         entries: list[tuple[str, str | None]] = []  # (file or archive, member)
         for src in map(Path, sources):
-            if _reserved(str(src.resolve())):
-                raise ValueError(f"{src}: a photograph source kept for independent tests; never train on it")
             if src.is_dir():
                 entries += [(str(p), None) for p in sorted(src.rglob("*")) if p.suffix.lower() in _IMAGE_SUFFIXES]
             elif zipfile.is_zipfile(src):
@@ -76,8 +75,13 @@ class PhotoLibrary:
                 entries.append((str(src), None))
             else:
                 raise ValueError(f"{src}: no such photograph, folder or archive")
-        entries = [e for e in entries if not any(m in (e[1] or e[0]).lower() for m in _NOT_PICTURES)
-                   and not _reserved(e[1] or e[0])]
+        for path, member in entries:
+            if _reserved(f"{Path(path).resolve()}/{member or ''}"):  # resolved: a link into one is refused too
+                raise ValueError(f"{path}{':' + member if member else ''}: a photograph source kept for independent "
+                                 "tests; never train on it")
+        pictures = [e for e in entries if not any(m in (e[1] or e[0]).lower() for m in _NOT_PICTURES)]
+        self.maps_skipped = len(entries) - len(pictures)
+        entries = pictures
         order = np.random.default_rng(seed).permutation(len(entries))
         self.photos: list[np.ndarray] = []
         self.names: list[str] = []
@@ -105,7 +109,8 @@ class PhotoLibrary:
         if not self.photos:
             raise ValueError(f"no usable photograph in {', '.join(map(str, sources))} "
                              f"({self.dropped} unreadable or under {min_side} px)")
-        log.info("%d photographs loaded, %d dropped (unreadable or under %d px)", len(self.photos), self.dropped, min_side)
+        log.info("%d photographs loaded, %d dropped (unreadable or under %d px), %d texture maps skipped",
+                 len(self.photos), self.dropped, min_side, self.maps_skipped)
 
 
 @dataclass(frozen=True)

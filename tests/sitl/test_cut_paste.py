@@ -89,6 +89,8 @@ def test_the_sources_kept_for_independent_tests_are_refused(tmp_path):
         _photo(folder / "grass.png")
         with pytest.raises(ValueError, match="kept for independent tests"):
             PhotoLibrary([folder])
+        with pytest.raises(ValueError, match="kept for independent tests"):  # inside a folder given
+            PhotoLibrary([tmp_path])
 
 
 def test_photographs_come_from_folders_and_archives_and_unusable_ones_are_counted(tmp_path):
@@ -102,7 +104,7 @@ def test_photographs_come_from_folders_and_archives_and_unusable_ones_are_counte
         z.writestr("textures/tex_nature/dirt.jpg", buf.tobytes())
         z.writestr("textures/readme.txt", "no image")
     lib = PhotoLibrary([tmp_path / "walls", tmp_path / "pack.pk3"])
-    assert len(lib.photos) == 2 and lib.dropped == 2
+    assert len(lib.photos) == 2 and lib.dropped == 2 and lib.maps_skipped == 1
     assert sorted(n.rsplit("/", 1)[-1] for n in lib.names) == ["dirt.jpg", "field.jpg"]
     with pytest.raises(ValueError, match="no usable photograph"):
         PhotoLibrary([tmp_path / "walls" / "tiny.png"])
