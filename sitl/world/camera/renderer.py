@@ -34,7 +34,8 @@ from sitl.world.camera.scene import GroundScene
 from sitl.world.camera.sky import Sky
 from sitl.world.camera.world import CameraWorld
 
-__all__ = ["Lighting", "TargetPose", "TargetLabel", "RenderedFrame", "Renderer", "Region", "attitude_from_velocity", "viewports", "compile_model", "draw_model"]
+__all__ = ["Lighting", "TargetPose", "TargetLabel", "RenderedFrame", "Renderer", "Region", "attitude_from_velocity", "viewports",
+           "compile_model", "draw_model"]
 
 _DISC_SIDES = 12
 _COARSE = 4  # sky and haze grid step (pixels)
@@ -383,7 +384,6 @@ class Renderer:
         return tuple(sorted(labels, key=lambda lab: lab.index))
 
 
-
 def draw_model(img: np.ndarray, m: _CompiledModel, rot: np.ndarray, pos: np.ndarray, r_ce: np.ndarray, c_enu: np.ndarray,
                focal_px: tuple[float, float], sun: np.ndarray, brightness: float
                ) -> tuple[np.ndarray, np.ndarray, tuple[float, float], float] | None:
@@ -423,6 +423,7 @@ def draw_model(img: np.ndarray, m: _CompiledModel, rot: np.ndarray, pos: np.ndar
 
 
 def _paint_model(img: np.ndarray, m: _CompiledModel, ps, rs, pa, pb, rr, pd, zs, zr, zd, shade: float) -> None:
+    """Paint the projected primitives far to near (painter's order), discs blended by their alpha."""
     s = 16.0  # fixed-point sub-pixel drawing (4 fractional bits)
     items = [(z, 0, k) for k, z in enumerate(zs)] + [(z, 1, k) for k, z in enumerate(zr)] + [(z, 2, k) for k, z in enumerate(zd)]
     items.sort(key=lambda it: -it[0])
