@@ -84,8 +84,8 @@ class CommandingBehaviour(VehicleBehaviour):
     def terminate(self, new_status: Status) -> None:
         halted = new_status == Status.INVALID and self.status == Status.RUNNING
         if self.link is not None and (new_status == Status.FAILURE or (halted and self.HOVER_ON_HALT)):
-            self.link.hover()
-            self.feedback_message = f"{self.feedback_message} (hover sent)".strip()
+            if self.link.hover():  # nothing is sent to a disarmed aircraft, or one its autopilot flies (RTL, LOITER ...)
+                self.feedback_message = f"{self.feedback_message} (hover sent)".strip()
 
 
 def optional_input(node: py_trees.ports.PortsMixin, port: str) -> Any:

@@ -63,7 +63,8 @@ class ModeIs(_Condition):
 
 @register_behaviour
 class BatteryAbove(_Condition):
-    """Battery remaining is at least ``percent``; an unknown level counts as false (fail safe)."""
+    """Battery remaining is at least ``percent`` and the autopilot's own battery failsafe has not fired
+    (it fires on voltage, which the percentage can hide); an unknown level counts as false (fail safe)."""
 
     INPUT_PORTS = {
         "percent": input_port(float, "Minimum remaining capacity (%)", minimum=0, maximum=100),
@@ -73,6 +74,8 @@ class BatteryAbove(_Condition):
 
     def check(self, state: VehicleState) -> tuple[bool, str]:
         level = state.battery_remaining_pct
+        if state.battery_failsafe:
+            return False, f"the autopilot's battery failsafe ({level:.0f}% left)"
         if math.isnan(level):
             return False, "battery level unknown"
         return level >= self.get_input("percent"), f"battery {level:.0f}%"

@@ -8,7 +8,9 @@ import numpy as np
 import py_trees
 
 from behaviours.base import CommandingBehaviour, state_port
+from chaser_bt.control.progress import ProgressWatch
 from chaser_bt.geo import GeoPoint
+from chaser_bt.vehicle import VehicleState
 from chaser_bt.tree import input_port, register_behaviour
 
 Status = py_trees.common.Status
@@ -27,7 +29,9 @@ class GoTo(CommandingBehaviour):
 
     ArduCopter holds a position target until it is replaced (DESIGN §5); the target is re-sent every
     ``resend_s`` anyway, so a lost datagram costs a second, not the mission. FAILURE when the vehicle
-    leaves GUIDED (a failsafe or the pilot took over): the tree decides what comes next.
+    leaves GUIDED (a failsafe or the pilot took over), is disarmed, or gets no closer for ``stall_s``
+    (:class:`~chaser_bt.control.progress.ProgressWatch`: ArduCopter's fence refuses a target outside it
+    and holds): the tree decides what comes next, instead of waiting for the battery.
     """
 
     INPUT_PORTS = {
@@ -36,6 +40,7 @@ class GoTo(CommandingBehaviour):
         "acceptance_radius_m": input_port(float, "Arrived when this close to the waypoint (m)", default=2.0, minimum=0),
         "speed_mps": input_port(float, "Horizontal speed (m/s); 0 keeps the vehicle's WPNAV_SPEED", default=0.0, minimum=0),
         "resend_s": input_port(float, "Re-send the target this often (s)", default=1.0, minimum=0),
+        "stall_s": input_port(float, "Fail after this long without getting 2 m closer (s; 0 = never)", default=30.0, minimum=0),
         "state": state_port(),
     }
     OUTPUT_PORTS: dict = {}
@@ -43,6 +48,7 @@ class GoTo(CommandingBehaviour):
     def initialise(self) -> None:
         self._target_enu: np.ndarray | None = None
         self._last_sent_s = -np.inf
+        self._progress = ProgressWatch(window_s=self.get_input("stall_s"))
         speed = self.get_input("speed_mps")
         if speed > 0:
             self._link().set_speed(speed)
@@ -51,6 +57,9 @@ class GoTo(CommandingBehaviour):
         state, link = self.state, self._link()
         if state.mode != "GUIDED":
             self.feedback_message = f"vehicle is in {state.mode or 'an unknown mode'}, not GUIDED"
+            return Status.FAILURE
+        if not state.armed:
+            self.feedback_message = "vehicle disarmed"
             return Status.FAILURE
         if self._target_enu is None:
             target = self._resolve_target()
@@ -65,6 +74,10 @@ class GoTo(CommandingBehaviour):
         if distance <= self.get_input("acceptance_radius_m"):
             self.feedback_message = f"arrived ({distance:.1f} m)"
             return Status.SUCCESS
+        self._progress.observe(now, distance)
+        if self._progress.stalled(now):
+            self.feedback_message = stall_message(self._progress, now, distance, state)
+            return Status.FAILURE
         self.feedback_message = f"{distance:.0f} m to go"
         return Status.RUNNING
 
@@ -83,3 +96,16 @@ class GoTo(CommandingBehaviour):
             return None
         lat, lon, alt_rel = waypoint
         return frame.point_to_enu(GeoPoint(lat, lon, home.alt_m + alt_rel))
+
+
+def stall_message(watch: ProgressWatch, now: float, distance_m: float, state: VehicleState) -> str:
+    """Why a movement failed: how long without progress, how far to go, and what the autopilot said meanwhile."""
+    since = watch.since_s(now)
+    said = [text for t, _, text in state.statustexts if t >= state.t_boot_s - since]
+    if said:
+        why = f"the autopilot said: {said[-1]}"
+    elif state.fence_enabled:
+        why = "the autopilot's fence is on: GUIDED refuses a target outside it"
+    else:
+        why = "the autopilot is not flying the target (wind? a lost command?)"
+    return f"no progress for {since:.0f} s with {distance_m:.0f} m to go: {why}"

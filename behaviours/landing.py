@@ -3,7 +3,9 @@
 Both succeed only for a flight that happened: a vehicle disarmed on the ground when the leaf
 starts has nothing to return from, and "landed and disarmed" would report a flight that never
 flew (a tree whose take-off failed, ticked into its RTL, must not end in SUCCESS). They fail then,
-without commanding anything.
+without commanding anything. And "landed" means a touchdown seen before the disarm
+(:class:`~chaser_bt.vehicle.touchdown.TouchdownJudge`): an aircraft disarmed in the air fails the
+leaf as a crash, never "landed".
 """
 
 from __future__ import annotations
@@ -15,13 +17,14 @@ import py_trees
 from behaviours.base import CommandingBehaviour, state_port
 from chaser_bt.tree import input_port, register_behaviour
 from chaser_bt.vehicle import Command
+from chaser_bt.vehicle.touchdown import Touchdown, TouchdownJudge
 
 Status = py_trees.common.Status
 
 
 class _AutopilotLanding(CommandingBehaviour):
     """Request a landing mode once; SUCCESS on acceptance, or once landed and disarmed; FAILURE at
-    once when the vehicle was disarmed on the ground to begin with."""
+    once when the vehicle was disarmed on the ground to begin with, and when it is disarmed in the air."""
 
     MODE = ""
     # RTL and LAND are already the safe end state: halting them must not replace them with a hover.
@@ -38,12 +41,17 @@ class _AutopilotLanding(CommandingBehaviour):
         """Send this leaf's one link command."""
 
     def initialise(self) -> None:
+        self._touchdown = TouchdownJudge()
         self._command: Command | None = self._request() if self.state.armed else None
 
     def update(self) -> Status:
         state = self.state
+        verdict = self._touchdown.observe(self._now(), state)
         if self._command is None:
             self.feedback_message = f"disarmed on the ground: no flight to end with {self.MODE}"
+            return Status.FAILURE
+        if verdict is Touchdown.CRASHED:
+            self.feedback_message = self._touchdown.detail
             return Status.FAILURE
         if not self._command.done:
             self.feedback_message = f"requesting {self.MODE}"
@@ -54,8 +62,8 @@ class _AutopilotLanding(CommandingBehaviour):
         if not self.get_input("wait_landed"):
             self.feedback_message = f"in {self.MODE}"
             return Status.SUCCESS
-        if not state.armed:
-            self.feedback_message = "landed and disarmed"
+        if verdict is Touchdown.LANDED:
+            self.feedback_message = self._touchdown.detail
             return Status.SUCCESS
         if state.mode != self.MODE:
             self.feedback_message = f"left {self.MODE} for {state.mode} before landing"

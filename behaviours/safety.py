@@ -28,6 +28,7 @@ from chaser_bt.mission.geofence import Geofence
 from chaser_bt.tree import NodeKind, input_port, output_port, register_behaviour
 from chaser_bt.vehicle import Command, VehicleState
 from chaser_bt.vehicle.mode_authority import ModeAuthority
+from chaser_bt.vehicle.touchdown import Touchdown, TouchdownJudge
 
 Status = py_trees.common.Status
 
@@ -220,8 +221,8 @@ class YieldToPilot(VehicleBehaviour):
     """Command nothing: release the RC override and, with ``hand_back``, switch a GUIDED aircraft
     (where the sticks do nothing) to ``handback_mode`` once; then only watch.
 
-    RUNNING; SUCCESS once the aircraft is on the ground and disarmed after flying (the mission is
-    over). A halted mission leaf may still send its hover after this leaf's first tick (the tree
+    RUNNING; SUCCESS once the aircraft has touched down and disarmed after flying (the mission is
+    over); FAILURE when it is disarmed in the air (a crash is not the end of a mission). A halted mission leaf may still send its hover after this leaf's first tick (the tree
     halts it afterwards): an RC override re-held that way is released on the next tick.
     """
 
@@ -235,6 +236,7 @@ class YieldToPilot(VehicleBehaviour):
 
     def initialise(self) -> None:
         self._flew = self.state.airborne
+        self._touchdown = TouchdownJudge()
         self._mode_cmd: Command | None = None
         self._release_held_sticks()
         if self.get_input("hand_back") and self.state.armed and self.state.mode == "GUIDED":
@@ -243,10 +245,11 @@ class YieldToPilot(VehicleBehaviour):
     def update(self) -> Status:
         state: VehicleState = self.state
         self._flew |= state.airborne
+        verdict = self._touchdown.observe(self._now(), state)
         self._release_held_sticks()
-        if self._flew and not state.armed:
-            self.feedback_message = "landed and disarmed"
-            return Status.SUCCESS
+        if self._flew and verdict is not Touchdown.FLYING:
+            self.feedback_message = self._touchdown.detail
+            return Status.SUCCESS if verdict is Touchdown.LANDED else Status.FAILURE
         handing = self._mode_cmd is not None and not self._mode_cmd.done
         self.feedback_message = f"pilot has the aircraft ({state.mode or '?'})" + (" : handing back" if handing else "")
         return Status.RUNNING

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import enum
 
+import numpy as np
 import py_trees
 
 from behaviours.base import CommandingBehaviour, state_port
@@ -25,8 +26,9 @@ class ArmAndTakeoff(CommandingBehaviour):
     """Arm in GUIDED and climb to ``altitude_m`` above home; SUCCESS within ``tolerance_m`` of it.
 
     Each step is one non-blocking link command; the link itself waits (bounded) for the vehicle's
-    pre-arm readiness before arming (DESIGN §5). Already airborne: climbs straight to the altitude
-    with a position target, since ArduCopter refuses a takeoff command in flight. Once in GUIDED,
+    pre-arm readiness before arming (DESIGN §5). Already airborne (a vehicle joined in flight): GUIDED
+    if it is not in it, then straight to the altitude with a position target over where it is, once
+    its position is known, since ArduCopter refuses a takeoff command in flight. Once in GUIDED,
     a change to any other mode (a failsafe RTL, the pilot's switch) fails it at once: the climb
     is no longer ours to report.
     """
@@ -41,11 +43,10 @@ class ArmAndTakeoff(CommandingBehaviour):
     def initialise(self) -> None:
         self._command: Command | None = None
         self._guided = self.state.mode == "GUIDED"  # from here on, leaving GUIDED fails the take-off
-        if self.state.airborne:
+        self._joined, self._climb_sent = self.state.airborne, False  # joined in flight: climb by a target
+        if self._joined and self._guided:
             self._phase = _Phase.CLIMB
-            pos = self.state.position_enu
-            self._link().goto_enu([pos[0], pos[1], self.get_input("altitude_m")])
-        else:
+        else:  # on the ground, or joined in flight in another mode (LOITER, a hover left by a previous run)
             self._phase = _Phase.GUIDED
             self._command = self._link().set_mode("GUIDED")
 
@@ -69,7 +70,7 @@ class ArmAndTakeoff(CommandingBehaviour):
         if not self._command.ok:
             self.feedback_message = f"{self._phase.value} failed: {self._command.reason or self._command.status.name}"
             return Status.FAILURE
-        self._phase = _NEXT[self._phase]
+        self._phase = _Phase.CLIMB if self._phase is _Phase.GUIDED and self.state.airborne else _NEXT[self._phase]
         self._guided = True  # GUIDED was accepted and shows in the heartbeat
         link = self._link()
         if self._phase is _Phase.ARM:
@@ -86,6 +87,13 @@ class ArmAndTakeoff(CommandingBehaviour):
         if not state.armed:
             self.feedback_message = "disarmed during the climb"
             return Status.FAILURE
+        if self._joined and not self._climb_sent:
+            pos = state.position_enu
+            if not np.all(np.isfinite(pos[:2])):
+                self.feedback_message = "airborne: waiting for the vehicle's position in the mission frame"
+                return Status.RUNNING
+            self._link().goto_enu([pos[0], pos[1], altitude])
+            self._climb_sent = True
         if state.alt_rel_m >= altitude - self.get_input("tolerance_m"):
             self.feedback_message = f"at {state.alt_rel_m:.1f} m"
             return Status.SUCCESS

@@ -1,7 +1,8 @@
 """`chaser-bt`: validate, show, run and rehearse mission trees; start the built-in simulator.
 
 Exit codes: 0 success, 1 the mission failed or the vehicle could not be flown, 2 bad input
-(an invalid tree or scenario, a bad argument), 130 interrupted (Ctrl-C or SIGTERM). Arguments are
+(an invalid tree or scenario, a bad argument), 130 interrupted (Ctrl-C or SIGTERM); ``run`` gives
+each flight outcome its own (:data:`chaser_bt.mission.outcome.EXIT_CODES`). Arguments are
 checked by :mod:`chaser_bt.cli_args` as the command line is read. The simulator and the rehearsal
 harness are imported lazily: chaser_bt itself never depends on ``sitl`` (docs/design.md §2).
 """
@@ -138,6 +139,9 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     p.add_argument("--no-telemetry", action="store_true", help="do not listen for the intruder's own MAVLink position")
     p.add_argument("--origin", type=arg.geodetic_point, metavar="LAT,LON[,ALT]",
                    help="the mission's ENU origin, deg, deg, m (default: the vehicle's home, from HOME_POSITION)")
+    p.add_argument("--require-failsafes", action="store_true",
+                   help="refuse to fly unless the vehicle's GCS and battery failsafes, fence and RTL_ALT are set "
+                        "(they are read at connect and warned about either way)")
     _signing_arguments(p)
     add_recording_arguments(p)
     add_groot2_arguments(p)
@@ -296,6 +300,15 @@ def _fly(args: argparse.Namespace, tree, monitor) -> int:
     except VehicleError as exc:
         print(f"chaser-bt: {exc}", file=sys.stderr)
         return EXIT_FAILED
+    from chaser_bt.mission.preflight import read_safety_settings, safety_warnings
+
+    unsafe = safety_warnings(read_safety_settings(link))
+    for line in unsafe:
+        print(f"chaser-bt: run: warning: {line}", file=sys.stderr)
+    if unsafe and args.require_failsafes:
+        link.close()
+        raise _BadInput(f"run: --require-failsafes: {len(unsafe)} safety setting(s) off on the vehicle (above); "
+                        "not flying (docs/ardupilot.md says what to set)")
     clock = WallClock() if args.clock == "wall" else FunctionClock(lambda: link.state.t_boot_s)
     try:
         resources = _flight_sensors(args, link, clock)
@@ -307,7 +320,7 @@ def _fly(args: argparse.Namespace, tree, monitor) -> int:
         monitor.attach(runner)
     if args.show_ticks:
         runner.on_tick(_tick_printer(tree, sys.stdout))
-    print(f"flying {tree.name} on {args.connect} (Ctrl-C hands the aircraft back hovering)")
+    print(f"flying {tree.name} on {args.connect} (Ctrl-C hands the aircraft back holding)")
     try:
         if hook is not None:
             runner.setup()
@@ -319,16 +332,17 @@ def _fly(args: argparse.Namespace, tree, monitor) -> int:
         close_flight_sensors(resources)  # the camera's threads end with the flight (Ctrl-C and SIGTERM too)
         link.close()
     state = link.state
-    print(f"{result.status.value}: {result.message or '-'} after {result.ticks} ticks; vehicle {state.mode}, {'armed' if state.armed else 'disarmed'}")
+    verdict = result.verdict
+    print(f"{verdict.line()} after {result.ticks} ticks; vehicle {state.mode or '?'}, "
+          f"{'armed' if state.armed else 'disarmed'}, {state.alt_rel_m:.1f} m above home"
+          + (f"; {result.hand_back}" if result.hand_back else ""))
     if "no ENU frame yet" in (result.message or ""):
         print("chaser-bt: run: the vehicle has not sent its home yet (a vehicle already flying, or just "
               "reconnected): wait for it, or give the mission's origin with --origin LAT,LON,ALT", file=sys.stderr)
     if result.status is not RunStatus.SUCCESS and args.signing_key is None and "no answer" in (result.message or ""):
         print("chaser-bt: run: the vehicle did not answer our commands; if it requires MAVLink 2 signing "
               "(`chaser-bt sitl --signing-key FILE` does), pass the same --signing-key", file=sys.stderr)
-    if result.status is RunStatus.INTERRUPTED:  # Ctrl-C or SIGTERM: the tree was halted, the aircraft left hovering
-        return EXIT_INTERRUPTED
-    return EXIT_OK if result.status is RunStatus.SUCCESS else EXIT_FAILED
+    return verdict.exit_code  # 0 only for "completed" (docs/run.md lists the others)
 
 
 def _rehearse(args: argparse.Namespace) -> int:

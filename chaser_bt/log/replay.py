@@ -34,6 +34,7 @@ from chaser_bt.clock import FunctionClock
 from chaser_bt.geo import GeoPoint
 from chaser_bt.log import schemas as S
 from chaser_bt.log.trace import BeliefSnapshot, FlightTrace, TraceEvent
+from chaser_bt.mission.outcome import PHASE_KEY as _PHASE_KEY
 from chaser_bt.mission.runner import MissionRunner, StatusChange
 from chaser_bt.tree import MissionTree, reset_blackboard
 from chaser_bt.vehicle import LinkConfig, VehicleError, VehicleLink
@@ -395,7 +396,6 @@ def replay(log: FlightLog, tree: MissionTree, *, correlator: str | None = None,
 # --- FlightTrace ----------------------------------------------------------------------------------
 _TARGET_KEYS = ("/target/telemetry", "/target/estimate", "/target/cue")  # in order of preference
 _TARGET_STALE_S = 2.0
-_PHASE_KEY = "/mission/phase"
 _VALIDATED_KEY = "/radar/validated_track"
 
 

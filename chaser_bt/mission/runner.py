@@ -26,12 +26,14 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping
 
+import numpy as np
 import py_trees
 
 from chaser_bt.clock import Clock
+from chaser_bt.mission.outcome import PHASE_KEY, FlightWitness, Verdict, judge
 from chaser_bt.mission.resources import missing_resources
-from chaser_bt.tree import MissionTree
-from chaser_bt.vehicle import VehicleError, VehicleLink
+from chaser_bt.tree import MissionTree, NodeKind
+from chaser_bt.vehicle import VehicleError, VehicleLink, VehicleQuiet
 
 __all__ = ["MISSION_TIME_KEY", "VEHICLE_STATE_KEY", "MissionRunner", "RunResult", "RunStatus", "StatusChange"]
 
@@ -39,6 +41,9 @@ log = logging.getLogger(__name__)
 
 VEHICLE_STATE_KEY = "/vehicle/state"
 MISSION_TIME_KEY = "/mission/time_s"
+
+# Modes in which the mission's own hold (a GUIDED position target, centred sticks) keeps the aircraft.
+_MISSION_HOLD_MODES = ("GUIDED", "STABILIZE", "ALT_HOLD")
 
 # What the first tick needs from the vehicle besides its home: message type, and why.
 _FIRST_TICK_NEEDS = (
@@ -64,6 +69,8 @@ class RunResult:
     status: RunStatus
     ticks: int
     message: str = ""
+    verdict: Verdict | None = None  # the flight's outcome (:mod:`chaser_bt.mission.outcome`)
+    hand_back: str = ""  # what :meth:`MissionRunner.confirm_hold` saw ("" when the aircraft was not in the air)
 
 
 @dataclass(frozen=True)
@@ -128,9 +135,12 @@ class MissionRunner:
         self._blackboard = py_trees.blackboard.Client(name="MissionRunner")
         self._blackboard.register_key(VEHICLE_STATE_KEY, access=py_trees.common.Access.WRITE)
         self._blackboard.register_key(MISSION_TIME_KEY, access=py_trees.common.Access.WRITE)
+        self._blackboard.register_key(PHASE_KEY, access=py_trees.common.Access.READ)
+        self.witness = FlightWitness()
         self.tick_log: list[StatusChange] = []
         self._tick_listeners: list[Callable[[list[StatusChange]], None]] = []
         self._last_status: dict[object, py_trees.common.Status] = {}
+        self._changed_last_tick: set = set()
         self._set_up = False
 
     # -- lifecycle --------------------------------------------------------------------------
@@ -146,6 +156,7 @@ class MissionRunner:
         if missing is not None:
             raise missing
         self._publish(self.clock.now())
+        self.witness = FlightWitness.attach(self.link, self.clock.now)
         self._bt.setup(link=self.link, clock=self.clock, **self.resources)
         self._set_up = True
 
@@ -191,6 +202,7 @@ class MissionRunner:
             self.setup()
         now = self.clock.now()
         self._publish(now)
+        self.witness.observe(now, self.link.state)
         start = self._perf()
         self._bt.tick()
         self._stats.wall_ms.append((self._perf() - start) * 1e3)
@@ -239,10 +251,18 @@ class MissionRunner:
 
     def tip_message(self) -> str:
         """The deepest running node and its feedback: why the tree is where it is."""
-        tip = self._bt.root.tip()
-        if tip is None:
-            return ""
-        return f"{tip.name}: {tip.feedback_message}" if tip.feedback_message else tip.name
+        return _said(self._bt.root.tip())
+
+    def end_message(self) -> str:
+        """Why the root finished: on FAILURE, the first action that failed in the last tick (a
+        fallback's alternatives failing after it, e.g. "battery above 30 %", are not the cause);
+        otherwise, or when no action failed, :meth:`tip_message`."""
+        if self.status == py_trees.common.Status.FAILURE:
+            for node in _nodes_post_order(self._bt.root, []):
+                if (not node.children and node.id in self._changed_last_tick and node.status == py_trees.common.Status.FAILURE
+                        and getattr(type(node), "NODE_KIND", NodeKind.ACTION) is NodeKind.ACTION):
+                    return _said(node)
+        return self.tip_message()
 
     def run(
         self,
@@ -253,8 +273,48 @@ class MissionRunner:
         """Real-time loop: poll the link, tick when due, until the root finishes or a stop.
 
         ``idle`` is called between polls (a short sleep by default). Ctrl-C, a vehicle error or a
-        leaf's exception all end in :meth:`stop`, so the aircraft is left hovering.
+        leaf's exception all end in :meth:`stop`, so the aircraft is left hovering; with the aircraft
+        in the air, :meth:`confirm_hold` then watches the hold take effect (``RunResult.hand_back``).
         """
+        result = self._run(should_stop, idle)
+        if self.link.state.airborne:
+            result.hand_back = self.confirm_hold(idle=idle)
+            log.info("hand-back: %s", result.hand_back)
+        return result
+
+    def confirm_hold(self, *, timeout_s: float = 10.0, idle: Callable[[], None] = lambda: time.sleep(0.002)) -> str:
+        """After :meth:`stop`: poll until the aircraft shows it is held, re-sending the hold each second.
+
+        Held means disarmed, in a mode that flies itself (LOITER, RTL, LAND, BRAKE ...), or holding
+        in GUIDED or by the sticks with the horizontal speed under 1 m/s and the vertical under
+        0.5 m/s. Bounded by ``timeout_s`` on the link's clock (vehicle time when the link runs on
+        it, so the same at 1x and 10x) and 1.5 ``timeout_s`` of wall time. Returns what was seen.
+        """
+        link, wall_start = self.link, time.monotonic()
+        start = last_sent = link.now()
+        try:
+            while True:
+                s = link.state
+                speed = float(np.hypot(*s.velocity_enu[:2]))
+                if not s.armed:
+                    return "hold confirmed: disarmed"
+                if s.mode not in _MISSION_HOLD_MODES:
+                    return f"hold confirmed: the autopilot's {s.mode} has the aircraft"
+                if speed < 1.0 and abs(float(s.velocity_enu[2])) < 0.5:
+                    return f"hold confirmed: {s.mode} at {speed:.1f} m/s"
+                if link.now() - start > timeout_s or time.monotonic() - wall_start > 1.5 * timeout_s:
+                    return f"hold NOT confirmed within {timeout_s:g} s: {s.mode} at {speed:.1f} m/s"
+                if link.now() - last_sent >= 1.0:
+                    link.hover()
+                    last_sent = link.now()
+                idle()
+                link.poll()
+        except KeyboardInterrupt:
+            return "hold NOT confirmed: interrupted again"
+        except VehicleError as exc:
+            return f"hold NOT confirmed: {exc}"
+
+    def _run(self, should_stop: Callable[[], bool], idle: Callable[[], None]) -> RunResult:
         try:
             if not self._set_up:
                 self.setup()
@@ -263,27 +323,42 @@ class MissionRunner:
                 message = (f"no {', no '.join(missing)} from the vehicle within {self.telemetry_timeout_s:g} s: "
                            f"not ticking a tree on a vehicle it cannot see")
                 self.stop(message)
-                return RunResult(RunStatus.ERROR, self.ticks, message)
+                return self._result(RunStatus.ERROR, message)
             while not should_stop():
                 self.link.poll()
                 if self.tick_if_due() and self.finished:
                     status = RunStatus.SUCCESS if self.status == py_trees.common.Status.SUCCESS else RunStatus.FAILURE
-                    message = self.tip_message()
+                    message = self.end_message()
                     self.stop(f"root returned {self.status.name}")
-                    return RunResult(status, self.ticks, message)
+                    return self._result(status, message)
+                if self.witness.crash:  # disarmed in the air: nothing is left for the tree to fly
+                    message = self.tip_message()
+                    self.stop(self.witness.crash)
+                    return self._result(RunStatus.FAILURE, message)
                 idle()
             self.stop("stop requested")
-            return RunResult(RunStatus.INTERRUPTED, self.ticks, "stop requested")
+            return self._result(RunStatus.INTERRUPTED, "stop requested")
         except KeyboardInterrupt:
             self.stop("interrupted by the operator")
-            return RunResult(RunStatus.INTERRUPTED, self.ticks, "interrupted by the operator")
+            return self._result(RunStatus.INTERRUPTED, "interrupted by the operator")
         except VehicleError as exc:
             self.stop(str(exc))
-            return RunResult(RunStatus.ERROR, self.ticks, str(exc))
+            return self._result(RunStatus.ERROR, str(exc), link_lost=isinstance(exc, VehicleQuiet))
         except Exception as exc:  # a leaf raised: never leave a command in force
             log.exception("mission tick raised")
             self.stop(f"{type(exc).__name__}: {exc}")
-            return RunResult(RunStatus.ERROR, self.ticks, f"{type(exc).__name__}: {exc}")
+            return self._result(RunStatus.ERROR, f"{type(exc).__name__}: {exc}")
+
+    def verdict(self, status: RunStatus, message: str, *, link_lost: bool = False) -> Verdict:
+        """The flight's outcome for a run that ended in ``status`` (:func:`chaser_bt.mission.outcome.judge`)."""
+        try:
+            phase = self._blackboard.get(PHASE_KEY)
+        except KeyError:  # the tree names no phase
+            phase = None
+        return judge(status.value, message, self.witness, phase, link_lost=link_lost)
+
+    def _result(self, status: RunStatus, message: str, *, link_lost: bool = False) -> RunResult:
+        return RunResult(status, self.ticks, message, self.verdict(status, message, link_lost=link_lost))
 
     # -- internals --------------------------------------------------------------------------
 
@@ -310,10 +385,12 @@ class MissionRunner:
     def _record_status_changes(self, now: float) -> list[StatusChange]:
         """Append this tick's status changes to :attr:`tick_log` (kept for replay and plots)."""
         changes = []
+        self._changed_last_tick = set()
         for node in _nodes_post_order(self._bt.root, []):
             old = self._last_status.get(node.id, py_trees.common.Status.INVALID)
             if old != node.status:
                 self._last_status[node.id] = node.status
+                self._changed_last_tick.add(node.id)
                 changes.append(StatusChange(now, node.name, old.name, node.status.name))
         self.tick_log.extend(changes)
         return changes
@@ -339,6 +416,13 @@ class _BehaviourTree(py_trees.trees.BehaviourTree):
         for _ in self.root.tick():
             pass
         self.count += 1
+
+
+def _said(node: py_trees.behaviour.Behaviour | None) -> str:
+    """``name: feedback`` of a node (its name alone without feedback; "" for none)."""
+    if node is None:
+        return ""
+    return f"{node.name}: {node.feedback_message}" if node.feedback_message else node.name
 
 
 def _nodes_post_order(node: py_trees.behaviour.Behaviour, out: list) -> list:

@@ -488,24 +488,27 @@ class VehicleLink:
         self._send_rc((_RC_RELEASE,) * 4, rest=_RC_RELEASE)
         self.last_setpoint = Setpoint("rc_release", self._now())
 
-    def hover(self) -> None:
+    def hover(self) -> bool:
         """The safe "stop moving" for the current mode (DESIGN §3: a behaviour's exit command).
 
         GUIDED: hold the current position (zero velocity if it is not known yet); STABILIZE/ALT_HOLD:
         centred sticks; LOITER, BRAKE, RTL, LAND and the rest already fly themselves: nothing.
         Disarmed: nothing either; a centred-throttle override left on a vehicle on the ground would
-        wait for whoever arms it next.
+        wait for whoever arms it next. Returns whether a command was sent.
         """
         s = self.state
         if not s.armed:
-            return
+            return False
         if s.mode == "GUIDED":
             if self.frame is not None and np.all(np.isfinite(s.position_enu)):
                 self.goto_enu(s.position_enu, s.yaw_enu_rad if math.isfinite(s.yaw_enu_rad) else None)
             else:
                 self.velocity_enu((0.0, 0.0, 0.0))
-        elif s.mode in _HOVER_BY_STICKS:
+            return True
+        if s.mode in _HOVER_BY_STICKS:
             self.rc_override(_RC_CENTRE, _RC_CENTRE, _RC_CENTRE, _RC_CENTRE)
+            return True
+        return False
 
     def add_listener(
         self, *, on_receive: Callable[[Any], None] | None = None, on_send: Callable[[Any], None] | None = None,

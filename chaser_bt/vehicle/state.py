@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import enum
 import math
+import re
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -76,10 +77,13 @@ class VehicleState:
     satellites: int = 0
     battery_voltage_v: float = _NAN
     battery_remaining_pct: float = _NAN
+    battery_failsafe: bool = False  # the autopilot's own low-battery failsafe has fired (it may take no action)
     rc_channels: tuple[int, ...] = ()  # PWM as the flight controller sees it
     home: GeoPoint | None = None
     prearm_ok: bool = False  # SYS_STATUS health has MAV_SYS_STATUS_PREARM_CHECK
     ekf_ok: bool = False  # EKF_STATUS_REPORT has EKF_REQUIRED_FLAGS
+    fence_enabled: bool = False  # SYS_STATUS: the autopilot's geofence is on (GUIDED refuses targets outside it)
+    fence_breached: bool = False  # SYS_STATUS: ... and breached now
     statustexts: deque[tuple[float, int, str]] = field(default_factory=lambda: deque(maxlen=50))
     # The latest reported (roll, pitch, yaw) not yet turned into ``attitude``: ATTITUDE arrives at
     # 10 Hz and scipy's Rotation costs more than the rest of the message, so it is built when read.
@@ -158,13 +162,20 @@ def _gps_raw(s: VehicleState, m: Any, frame: LocalFrame | None) -> None:
 
 def _sys_status(s: VehicleState, m: Any, frame: LocalFrame | None) -> None:
     s.prearm_ok = bool(m.onboard_control_sensors_health & mavlink2.MAV_SYS_STATUS_PREARM_CHECK)
+    fence = mavlink2.MAV_SYS_STATUS_GEOFENCE
+    s.fence_enabled = bool(m.onboard_control_sensors_enabled & fence)
+    s.fence_breached = s.fence_enabled and not m.onboard_control_sensors_health & fence
     s.battery_voltage_v = _NAN if m.voltage_battery == _UINT16_MAX else m.voltage_battery * 1e-3
     s.battery_remaining_pct = _NAN if m.battery_remaining < 0 else float(m.battery_remaining)
 
 
 def _battery_status(s: VehicleState, m: Any, frame: LocalFrame | None) -> None:
-    if m.id == 0 and m.battery_remaining >= 0:
+    if m.id != 0:
+        return
+    if m.battery_remaining >= 0:
         s.battery_remaining_pct = float(m.battery_remaining)
+    # ArduPilot reports its battery failsafe level here (AP_BattMonitor::get_mavlink_charge_state)
+    s.battery_failsafe = int(getattr(m, "charge_state", 0)) >= mavlink2.MAV_BATTERY_CHARGE_STATE_LOW
 
 
 def _extended_sys_state(s: VehicleState, m: Any, frame: LocalFrame | None) -> None:
@@ -188,7 +199,10 @@ def _rc_channels(s: VehicleState, m: Any, frame: LocalFrame | None) -> None:
 
 
 def _statustext(s: VehicleState, m: Any, frame: LocalFrame | None) -> None:
-    s.statustexts.append((s.t_boot_s, int(m.severity), statustext_str(m)))
+    text = statustext_str(m)
+    s.statustexts.append((s.t_boot_s, int(m.severity), text))
+    if _BATTERY_FAILSAFE_TEXT.match(text):  # AP_BattMonitor's "Battery 1 is low 10.40V used 0 mAh"
+        s.battery_failsafe = True
 
 
 def statustext_str(m: Any) -> str:
@@ -196,6 +210,8 @@ def statustext_str(m: Any) -> str:
     text = m.text.decode("utf-8", "replace") if isinstance(m.text, (bytes, bytearray)) else m.text
     return text.rstrip("\x00").strip()
 
+
+_BATTERY_FAILSAFE_TEXT = re.compile(r"Battery \d+ is (low|critical)\b", re.IGNORECASE)
 
 _Handler = Callable[[VehicleState, Any, "LocalFrame | None"], None]
 _HANDLERS: dict[str, _Handler] = {

@@ -90,6 +90,14 @@ def image_size(text: str) -> int:
     return value
 
 
+def stage_widths(text: str) -> tuple[int, ...]:
+    """Five comma-separated positive channel counts, one per detector stage."""
+    parts = text.split(",")
+    if len(parts) != 5:
+        raise argparse.ArgumentTypeError(f"expected five comma-separated widths, got {text!r}")
+    return tuple(positive_int(p.strip()) for p in parts)
+
+
 def _train(args: argparse.Namespace) -> int:
     from chaser_bt.vision.detector.train import TrainConfig, TrainingInterrupted, train_detector
 
@@ -98,7 +106,7 @@ def _train(args: argparse.Namespace) -> int:
         return 2
     try:
         out = train_detector(TrainConfig(args.data, args.out, steps=args.steps, batch=args.batch, seed=args.seed, threads=args.threads,
-                                         lr=args.lr, init_weights=args.init or "", small_box_px=args.small_box_px,
+                                         lr=args.lr, init_weights=args.init or "", widths=args.widths, small_box_px=args.small_box_px,
                                          small_weight=args.small_weight, obj_iou=args.obj_iou, mixup=args.mixup,
                                          mixup_beta=args.mixup_beta, blur=args.blur), resume=not args.fresh)
     except (ValueError, FileNotFoundError) as e:
@@ -304,6 +312,9 @@ def add_command(subparsers) -> None:
     t.add_argument("--lr", default=2e-3, type=positive_float, help="peak learning rate (default 2e-3; lower when fine-tuning)")
     t.add_argument("--init", default=None, metavar="FILE.pt",
                    help="fine-tune from these weights (same classes) instead of from scratch (default: from scratch)")
+    t.add_argument("--widths", default=None, type=stage_widths, metavar="W,W,W,W,W",
+                   help="the five stage widths; with --init, the trained net is first widened to them without changing its "
+                        "output (default: the --init weights' widths, or 16,32,48,96,128)")
     t.add_argument("--small-box-px", default=0.0, type=non_negative_float, metavar="PX",
                    help="over-sample images with a box narrower than this, px at 416 scale (default 0: no over-sampling)")
     t.add_argument("--small-weight", type=positive_float, default=3.0, help="how many times more often such images are drawn (default 3)")

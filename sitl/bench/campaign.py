@@ -77,6 +77,9 @@ VARYING_KEYS: tuple[str, ...] = (
 
 #: ``--quick``: each run's simulated time is capped here (enough to launch, acquire and follow a while).
 QUICK_TIME_LIMIT_S = 120.0
+#: ``final_state`` values that a standing-by pilot would have to rescue (sitl.bench.safe_end).
+UNSAFE_STATES = ("crashed", "moving", "falling")
+SETTLE_NOTE = "judged 10 s of simulated time after the mission stopped"
 
 _OK_OUTCOMES = ("landed", "following", "completed")
 
@@ -152,6 +155,7 @@ class RunSpec:
     autopilot: str = "builtin"  # who flies (sitl.bench.rehearsal.AutopilotChoice)
     airframe: str = "s1000"
     ardupilot: str | None = None  # contents of the tree, its includes and the scenario: a stored result counts only if it matches
+    chaos: bool = False  # one random fault drawn from the seed (sitl.bench.chaos)
 
     @property
     def scenario_stem(self) -> str:
@@ -207,6 +211,7 @@ class CampaignConfig:
     autopilot: str = "builtin"  # who flies: "builtin" or "ardupilot" (on ``airframe``, binary in ``ardupilot``)
     airframe: str = "s1000"
     ardupilot: Path | None = None
+    chaos: bool = False  # one random fault per run (sitl.bench.chaos)
 
     def specs(self) -> list[RunSpec]:
         from chaser_bt.tree.documents import tree_files
@@ -216,8 +221,9 @@ class CampaignConfig:
         folder = None if self.ardupilot is None else str(self.ardupilot)
         return [
             RunSpec(str(self.tree.resolve()), str(sc.resolve()), seed, self.camera, self.quick,
-                    f"{tree_digest}-{_digest(sc)}-{'cam' if self.camera else 'nocam'}{'-quick' if self.quick else ''}{flown_by}",
-                    self.autopilot, self.airframe, folder)
+                    f"{tree_digest}-{_digest(sc)}-{'cam' if self.camera else 'nocam'}{'-quick' if self.quick else ''}{flown_by}"
+                    f"{'-chaos' if self.chaos else ''}",
+                    self.autopilot, self.airframe, folder, self.chaos)
             for sc in self.scenarios for seed in self.seeds
         ]
 
@@ -308,8 +314,15 @@ def run_one(spec: RunSpec) -> dict:
         scenario = load_scenario(spec.scenario)
         if spec.quick:
             scenario = dataclasses.replace(scenario, time_limit_s=min(scenario.time_limit_s, QUICK_TIME_LIMIT_S))
+        fault = None
+        if spec.chaos:
+            from sitl.bench.chaos import with_random_fault
+
+            scenario, fault = with_random_fault(scenario, spec.seed)
         report = rehearse(spec.tree, scenario, spec.seed, **_rehearse_kwargs(rehearse, spec))
         row = report.to_dict()
+        if fault is not None:
+            row.update(chaos_fault=fault["kind"], chaos_at_s=fault["at_s"])
         trace = getattr(report, "trace", None)
         row.pop("trace", None)
     except Exception as exc:  # a run that cannot even start is an error row, not a dead campaign
@@ -634,6 +647,11 @@ def aggregate(rows: Sequence[Mapping[str, Any]], success: Callable[[Mapping[str,
     found = [bool(r["sar_found"]) for r in rows if r.get("sar_found") is not None]
     if found:
         extra["sar_found_frac"] = sum(found) / len(found)
+    extra["false_successes"] = sum(1 for r in rows if _false_success(r))
+    extra["unsafe_ends"] = sum(1 for r in rows if r.get("final_state") in UNSAFE_STATES)
+    if any(r.get("chaos_fault") for r in rows):
+        extra["chaos_faults"] = dict(Counter(str(r["chaos_fault"]) for r in rows if r.get("chaos_fault")))
+        extra["t_safe_s"] = summarise(r.get("t_safe_s") for r in rows if r.get("chaos_fault"))
     return {
         "runs": n,
         "success": sum(ok),
@@ -643,6 +661,12 @@ def aggregate(rows: Sequence[Mapping[str, Any]], success: Callable[[Mapping[str,
         "metrics": metrics,
         **extra,
     }
+
+
+def _false_success(row: Mapping[str, Any]) -> bool:
+    """The mission said ``completed`` while the truth shows a crash, a failsafe's landing, or an aircraft left unsafe."""
+    return row.get("mission_outcome") == "completed" and (
+        row.get("outcome") in ("crashed", "failsafe") or row.get("final_state") in UNSAFE_STATES)
 
 
 def _load_traces(out_dir: Path, rows: Sequence[Mapping[str, Any]]) -> list[FlightTrace]:
@@ -712,10 +736,20 @@ def _campaign_markdown(config, rows, agg, images, markdown_table) -> str:
     ]
     if "sar_found_frac" in agg:
         parts += ["", f"Search and rescue: found in {agg['sar_found_frac']:.0%} of runs."]
+    parts += ["", "## Safety", "",
+              f"False successes (the mission said `completed`; the truth crashed, needed a failsafe or left the aircraft "
+              f"unsafe): **{agg['false_successes']}**. Runs ending with the aircraft not safe ({', '.join(UNSAFE_STATES)}, "
+              f"{SETTLE_NOTE}): **{agg['unsafe_ends']}**."]
+    if "chaos_faults" in agg:
+        t = agg["t_safe_s"]
+        parts += ["", markdown_table(("chaos fault", "runs"), sorted(agg["chaos_faults"].items())), "",
+                  f"Fault to safe: median {t['median']} s, p90 {t['p90']} s, max {t['max']} s (n = {t['n']})."]
     failed = [r for r in rows if not r.get("success")]
     if failed:
         parts += ["", "## Runs that did not succeed", "",
-                  markdown_table(("run", "outcome", "message"), [(r.get("key"), r.get("outcome"), str(r.get("message", ""))[:120]) for r in failed])]
+                  markdown_table(("run", "outcome", "mission said", "final state", "message"),
+                                 [(r.get("key"), r.get("outcome"), r.get("mission_outcome"), r.get("final_state"),
+                                   str(r.get("message", ""))[:120]) for r in failed])]
     for caption, name in images:
         parts += ["", f"## {caption}", "", f"![{caption}]({name})"]
     return "\n".join(parts) + "\n"
@@ -787,6 +821,9 @@ def add_command(subparsers) -> None:
     p.add_argument("--ray", metavar="ADDRESS", help="run on a Ray cluster (ADDRESS as ray.init takes it; 'local' starts one here; default: worker processes)")
     p.add_argument("--no-camera", action="store_true", help="rehearse without the rendered camera (faster)")
     p.add_argument("--quick", action="store_true", help=f"cap each run at {QUICK_TIME_LIMIT_S:g} s of simulated time (default: the scenario's time limit)")
+    p.add_argument("--chaos", action="store_true",
+                   help="strike each run with one random fault drawn from its seed (forced disarm, battery cell, GPS, "
+                        "radio, another ground station's LOITER); the report counts false successes and unsafe ends")
     p.add_argument("--fresh", action="store_true", help="fly every run again, ignoring stored results")
     p.add_argument("--report-only", action="store_true", help="fly nothing: write the report of the runs stored so far (give --quick/--no-camera as they were flown)")
     p.add_argument("--min-followed-s", type=float, default=SuccessRule.min_followed_s,
@@ -804,7 +841,7 @@ def _campaign_command(args: argparse.Namespace) -> int:
             workers=args.workers, ray_address=args.ray, camera=not args.no_camera, quick=args.quick, fresh=args.fresh,
             report_only=args.report_only,
             success=SuccessRule(min_followed_s=args.min_followed_s),
-            autopilot=args.autopilot, airframe=args.airframe, ardupilot=args.ardupilot,
+            autopilot=args.autopilot, airframe=args.airframe, ardupilot=args.ardupilot, chaos=args.chaos,
         )
         if args.min_followed_s < 0:
             raise CampaignError(f"--min-followed-s {args.min_followed_s}: must be >= 0")
@@ -830,6 +867,8 @@ def _campaign_command(args: argparse.Namespace) -> int:
         m = agg["metrics"][key]
         if m["n"]:
             print(f"  {key:<20} median {m['median']:.4g} (p25-p75 {m['p25']:.3g}-{m['p75']:.3g}, n={m['n']}); paper {m['paper']}")
+    print(f"  false successes {agg['false_successes']}, runs ending with the aircraft not safe {agg['unsafe_ends']}"
+          + (f"; fault to safe median {agg['t_safe_s']['median']:.3g} s" if agg.get("t_safe_s", {}).get("n") else ""))
     print(f"report: {result.files.get('markdown', args.out)}")
     return 0 if (agg["success_frac"] or 0.0) >= args.min_success else 1
 

@@ -28,10 +28,11 @@ import py_trees
 from chaser_bt.cli_args import AUTOPILOTS
 from chaser_bt.log.trace import FlightTrace
 from chaser_bt.mission.resources import required_resources
-from chaser_bt.mission.runner import MissionRunner, StatusChange
+from chaser_bt.mission.runner import MissionRunner, RunStatus, StatusChange
 from chaser_bt.tree import MissionTree, load_tree, reset_blackboard
-from chaser_bt.vehicle import LinkConfig, VehicleError
+from chaser_bt.vehicle import LinkConfig, VehicleError, VehicleQuiet
 from sitl.bench.in_process import InProcessVehicle
+from sitl.bench.safe_end import SafeWatch
 from sitl.bench.sar_scoring import SarObserver, people_enu
 from sitl.bench.scoring import PHASE_KEY, RehearsalObserver
 from sitl.bench.sensors import SensorOptions, build_sensors
@@ -41,6 +42,9 @@ from sitl.world.scenario import Scenario, load_scenario
 __all__ = ["RehearsalInterrupted", "RehearsalReport", "SensorSetupError", "rehearse"]
 
 log = logging.getLogger(__name__)
+
+#: Simulated seconds after the mission stops in which its hold must take effect (``final_state``).
+SETTLE_S = 10.0
 
 
 @dataclass
@@ -67,6 +71,9 @@ class RehearsalReport:
     distance_flown_m: float  # horizontal path length (truth)
     battery_used_pct: float | None  # None: the autopilot did not report its battery
     message: str  # why it ended: the last running leaf's feedback, or the error
+    mission_outcome: str | None = None  # what the mission itself concluded, from telemetry (chaser_bt.mission.outcome)
+    final_state: str | None = None  # the truth SETTLE_S after the mission stopped (sitl.bench.safe_end)
+    t_safe_s: float | None = None  # first scripted fault -> the safe state that lasted (None: no fault, or not safe)
     t_airborne_s: float | None = None  # radar validation -> take-off altitude (paper 15.48 s)
     t_acquire_s: float | None = None  # take-off altitude -> first vision acquisition (paper 4.95 s)
     target_in_fov_frac: float | None = None  # from acquisition to the end of following (paper 0.91)
@@ -198,8 +205,10 @@ def rehearse(
     sar = SarObserver(sim)
     scorer = _Scorer()
     battery_start = sim.autopilot.battery().remaining_pct
+    safety = SafeWatch()
 
     outcome, message = "timeout", f"time limit of {scenario.time_limit_s:.0f} s reached"
+    run_status, verdict = RunStatus.INTERRUPTED, None  # as the mission sees it: stopped at the time limit
     wall_start = time.perf_counter()
     interrupted = False
     try:
@@ -210,6 +219,7 @@ def rehearse(
             vehicle.step()
             truth = sim.truth
             scorer.observe(truth)
+            safety.observe(sim.time_s, truth, sim.autopilot.mode, sim.autopilot.armed)
             if truth.crashed:
                 outcome, message = "crashed", "the vehicle hit the ground hard"
                 break
@@ -219,8 +229,11 @@ def rehearse(
                 if progress is not None:
                     progress(sim.time_s, py_trees.blackboard.Blackboard.storage.get(PHASE_KEY))
                 if runner.finished:
-                    message = runner.tip_message()
+                    message = runner.end_message()
                     outcome = _finished_outcome(runner.status, sim)
+                    if _falling(sim):  # the tree gave up on a disarmed aircraft in the air: score where it lands
+                        outcome, message = _fly_out_failsafe(sim, scorer, scenario.time_limit_s, message)
+                    run_status = RunStatus.SUCCESS if runner.status == py_trees.common.Status.SUCCESS else RunStatus.FAILURE
                     runner.stop(f"root returned {runner.status.name}")
                     break
         else:
@@ -235,15 +248,22 @@ def rehearse(
         # The mission lost the vehicle (e.g. a scripted link loss): score what the autopilot's own
         # failsafes make of it.
         runner.stop(str(exc))
+        verdict = runner.verdict(RunStatus.ERROR, str(exc), link_lost=isinstance(exc, VehicleQuiet))
         outcome, message = _fly_out_failsafe(sim, scorer, scenario.time_limit_s, str(exc))
     except Exception as exc:  # a leaf raised: the run is an error, and it still gets a report
         log.exception("rehearsal tick raised")
         runner.stop(str(exc))
         outcome, message = "error", f"{type(exc).__name__}: {exc}"
+        run_status = RunStatus.ERROR
     finally:
+        sim_time_s = sim.time_s
+        if not interrupted:  # the mission has stopped: where does its last command leave the aircraft?
+            _settle(vehicle, safety, SETTLE_S)
         mission_sensors.close()
         vehicle.close()
     wall = time.perf_counter() - wall_start
+    if verdict is None:
+        verdict = runner.verdict(run_status, message)
 
     ticks_ms = runner.tick_wall_ms
     pose_err = _radar_pose_error(sim, mission_sensors)
@@ -252,7 +272,7 @@ def rehearse(
         tree=tree.name,
         scenario=scenario.name,
         seed=seed,
-        sim_time_s=round(sim.time_s, 3),
+        sim_time_s=round(sim_time_s, 3),
         wall_time_s=round(wall, 3),
         realtime_factor=round(sim.time_s / wall, 1) if wall > 0 else math.inf,
         ticks=runner.ticks,
@@ -263,6 +283,9 @@ def rehearse(
         distance_flown_m=round(scorer.distance_m, 1),
         battery_used_pct=_battery_used(battery_start, sim.autopilot.battery().remaining_pct),
         message=message,
+        mission_outcome=verdict.outcome.value,
+        final_state=safety.state or None,
+        t_safe_s=_rounded(safety.time_to_safe(_first_fault_s(scenario))),
         **observer.scores().report_keys(),
         **sar.report_keys(),
         sensors=sorted(mission_sensors.resources),
@@ -329,6 +352,32 @@ def _finished_outcome(status: py_trees.common.Status, sim: Simulator) -> str:
     if status == py_trees.common.Status.FAILURE:
         return "error"
     return "landed" if sim.truth.on_ground and not sim.autopilot.armed else "completed"
+
+
+def _settle(vehicle, safety: SafeWatch, seconds: float) -> None:
+    """Simulate ``seconds`` more with the mission stopped (its hold sent), watching where the aircraft goes."""
+    sim = vehicle.sim
+    end = sim.time_s + seconds
+    while sim.time_s < end:
+        try:
+            vehicle.step()
+        except VehicleError:  # the mission's link is gone (a lost radio): the vehicle flies on regardless
+            sim.step()
+        safety.observe(sim.time_s, sim.truth, sim.autopilot.mode, sim.autopilot.armed)
+
+
+def _first_fault_s(scenario: Scenario) -> float | None:
+    """When the first scripted fault or foreign ground station's command strikes (None: none)."""
+    times = [f.at_s for f in scenario.faults] + [e.at_s for e in scenario.ground_station]
+    return min(times) if times else None
+
+
+def _rounded(value: float | None, digits: int = 2) -> float | None:
+    return None if value is None else round(value, digits)
+
+
+def _falling(sim: Simulator) -> bool:
+    return not sim.autopilot.armed and not sim.truth.on_ground
 
 
 def _fly_out_failsafe(sim: Simulator, scorer: _Scorer, limit_s: float, why: str) -> tuple[str, str]:

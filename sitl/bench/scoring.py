@@ -39,6 +39,7 @@ from scipy.spatial.transform import Rotation
 
 from chaser_bt.geo import heading_to_enu_yaw
 from chaser_bt.log.trace import BeliefSnapshot, FlightTrace, TraceEvent
+from chaser_bt.mission.outcome import PHASE_KEY
 from chaser_bt.radar.correlator import Association, TrackCorrelator, TrackPoints
 from chaser_bt.vision.camera import CameraModel
 
@@ -50,7 +51,6 @@ FOLLOW_LEAVES = ("CVFollow", "FollowGlobal")
 FOLLOW_PHASE = "follow"
 VALIDATED_TRACK_KEY = "/radar/validated_track"
 ESTIMATE_KEY = "/target/estimate"
-PHASE_KEY = "/mission/phase"
 BELIEF_KEY = "/search/belief"
 ACQUIRE_TOL_M = 10.0
 ACQUIRE_TOL_RAD = math.radians(3.0)

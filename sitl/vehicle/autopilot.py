@@ -41,7 +41,7 @@ from chaser_bt.geo import (
     euler_ned_from_rotation,
 )
 from sitl.vehicle.airframe import AirframeParams
-from sitl.vehicle.fence import FENCE_GIVE_UP_DISTANCE_M, breach_distance, fence_breaches
+from sitl.vehicle.fence import FENCE_GIVE_UP_DISTANCE_M, breach_distance, destination_within_fence, fence_breaches
 from sitl.vehicle.mission import MissionStore
 from sitl.vehicle.modes import (
     ARMING_DELAY_S,
@@ -209,6 +209,8 @@ class Autopilot:
                         for f in scenario.faults if f.kind == kind)
             for kind in ("gps_loss", "battery_drop")
         }
+        # forced disarms still to come (a ground station's MAV_CMD_COMPONENT_ARM_DISARM 0 / 21196)
+        self._disarms_due = sorted(f.at_s for f in scenario.faults if f.kind == "disarm")
         # RC: overrides per channel (0 = none) and when each was last set
         self._ovr = [0] * 18
         self._ovr_t = [0.0] * 18
@@ -249,6 +251,9 @@ class Autopilot:
         self.time_s += h
         self._update_sensors(h)
         self._ground_station()
+        if self._disarms_due and self.time_s >= self._disarms_due[0]:
+            self._disarms_due.pop(0)
+            self.request_arm(False, force=True)
         self._failsafes()
         ph = self.phys
         self._idle = False
@@ -623,6 +628,10 @@ class Autopilot:
         x, y, z = (float(v) for v in pos_enu[:3])
         if g is None or not _finite(x, y, z, yaw_enu_rad):
             return False
+        if self.home_enu is not None:
+            hx, hy, hz = self.home_enu
+            if not destination_within_fence(self.p, math.hypot(x - hx, y - hy), z - hz):
+                return False  # ArduCopter logs DEST_OUTSIDE_FENCE and keeps its old target
         yaw = None if yaw_enu_rad is None else wrap_pi(math.pi / 2.0 - yaw_enu_rad)
         g.set_position(self, x, y, z, yaw)
         return True

@@ -22,6 +22,7 @@ __all__ = [
     "FENCE_GIVE_UP_DISTANCE_M",
     "FENCE_POLYGON",
     "breach_distance",
+    "destination_within_fence",
     "fence_breaches",
     "fence_enabled",
     "fence_present",
@@ -57,6 +58,17 @@ def fence_breaches(p: Mapping[str, float], dist_from_home_m: float, alt_above_ho
     if kinds & FENCE_ALT_MAX and alt_above_home_m >= p["FENCE_ALT_MAX"]:
         out |= FENCE_ALT_MAX
     return out
+
+
+def destination_within_fence(p: Mapping[str, float], dist_from_home_m: float, alt_above_home_m: float) -> bool:
+    """AC_Fence::check_destination_within_fence: GUIDED (ModeGuided::set_destination) refuses a
+    target beyond the enabled circle or above the enabled ceiling, and keeps flying the old one."""
+    if int(p["FENCE_ENABLE"]) == 0:
+        return True
+    kinds = int(p["FENCE_TYPE"])
+    if kinds & FENCE_ALT_MAX and alt_above_home_m > p["FENCE_ALT_MAX"]:
+        return False
+    return not (kinds & FENCE_CIRCLE and p["FENCE_RADIUS"] > 0.0 and dist_from_home_m > p["FENCE_RADIUS"])
 
 
 def breach_distance(p: Mapping[str, float], breaches: int, dist_from_home_m: float,

@@ -438,6 +438,8 @@ class TelemetryEncoder:
         m.voltage_battery = _u16(batt.voltage_v * 1000.0)
         m.current_battery = _i16(batt.current_a * 100.0)
         m.battery_remaining = _clamp_int(batt.remaining_pct, 0, 100)
+        # AP_BattMonitor::get_mavlink_charge_state: the failsafe level, LOW once the low failsafe fired
+        m.charge_state = mavlink2.MAV_BATTERY_CHARGE_STATE_LOW if self._ap.fs_battery else mavlink2.MAV_BATTERY_CHARGE_STATE_OK
         self._emit(m)
 
     def _send_gps_raw_int(self) -> None:
@@ -551,6 +553,8 @@ class TelemetryEncoder:
         m.current_battery = _i16(batt.current_a * 100.0)
         m.current_consumed = _i32(batt.consumed_mah)
         m.battery_remaining = _clamp_int(batt.remaining_pct, 0, 100)
+        # AP_BattMonitor::get_mavlink_charge_state: the failsafe level, LOW once the low failsafe fired
+        m.charge_state = mavlink2.MAV_BATTERY_CHARGE_STATE_LOW if self._ap.fs_battery else mavlink2.MAV_BATTERY_CHARGE_STATE_OK
         self._emit(m)
 
     def _send_home_position(self) -> None:

@@ -126,6 +126,38 @@ def test_rtl_succeeds_for_a_vehicle_armed_on_the_ground(vehicle):
     assert not vehicle.sim.autopilot.armed
 
 
+@pytest.mark.parametrize("body", ["RTL: {wait_landed: true}", "Land"])
+def test_a_disarm_in_the_air_fails_rtl_and_land_as_a_crash(scenario, body):
+    """A second ground station force-disarms the aircraft at 20 m: it falls, and nothing says "landed"."""
+    import dataclasses
+
+    from sitl.vehicle.setup import Fault
+
+    at_s = 57.0  # the climb to 20 m ends at about 53.4 s (seed 7)
+    v = InProcessVehicle(dataclasses.replace(scenario, faults=(Fault(at_s, "disarm"),)), seed=7)
+    take_off(v, 20)
+    assert v.sim.time_s < at_s - 1.0
+    runner = runner_for(v, body)
+    status = v.fly(runner, 30.0)
+    assert status == Status.FAILURE
+    assert "disarmed in the air at" in runner.tree.root.feedback_message
+    assert v.sim.time_s < at_s + 2.0  # the next heartbeat, not the impact
+    assert v.run_until(lambda: v.sim.truth.on_ground, 10.0) and v.sim.truth.crashed  # the truth agrees
+
+
+def test_arm_and_takeoff_joins_a_vehicle_already_flying_in_another_mode(vehicle):
+    """A second run on an aircraft a first run left hovering in LOITER, before its position is known."""
+    take_off(vehicle, 12)
+    vehicle.link.wait(vehicle.link.set_mode("LOITER"), 10.0, pump=vehicle.step)
+    start = horizontal(vehicle.sim.truth.pos_enu)
+    vehicle.link.state.position_enu = np.full(3, np.nan)  # as on a fresh link: no position in the frame yet
+    status, runner = fly(vehicle, "ArmAndTakeoff: {altitude_m: 25}", timeout_s=60)
+    assert status == Status.SUCCESS, runner.tip_message()
+    assert vehicle.sim.autopilot.mode == "GUIDED" and vehicle.sim.autopilot.armed
+    assert vehicle.sim.truth.pos_enu[2] == pytest.approx(25.0, abs=1.5)
+    np.testing.assert_allclose(horizontal(vehicle.sim.truth.pos_enu), start, atol=2.0)  # straight up
+
+
 def test_arm_and_takeoff_fails_at_once_when_the_mode_is_taken_away(scenario):
     """The operator's ground station switches to RTL mid-climb: the climb is not ours any more."""
     import dataclasses

@@ -79,6 +79,7 @@ class _FakeLink:
 
     def hover(self):
         self.sent.append("hover")
+        return True
 
 
 # ---------------------------------------------------------------------------- mode authority
@@ -247,8 +248,22 @@ def test_yield_releases_held_sticks_and_hands_a_guided_aircraft_back_once():
     assert rig.link.sent == ["release_rc", "set_mode(LOITER)"]
     assert rig.tick(1.0) == Status.RUNNING
     assert rig.link.sent == ["release_rc", "set_mode(LOITER)"]  # nothing more
-    rig.state.armed, rig.state.landed_state = False, rig.state.landed_state.ON_GROUND
-    assert rig.tick(2.0) == Status.SUCCESS  # landed and disarmed after flying: mission over
+    rig.state.landed_state = rig.state.landed_state.ON_GROUND  # the pilot lands it, and it sits still
+    rig.state.velocity_enu = np.zeros(3)
+    assert rig.tick(2.0) == Status.RUNNING
+    assert rig.tick(3.0) == Status.RUNNING
+    rig.state.armed = False
+    assert rig.tick(3.5) == Status.SUCCESS  # landed and disarmed after flying: mission over
+
+
+def test_yield_fails_when_the_aircraft_is_disarmed_in_the_air():
+    rig = _Rig("YieldToPilot: {handback_mode: LOITER}")
+    rig.state.armed, rig.state.mode, rig.state.landed_state = True, "LOITER", rig.state.landed_state.IN_AIR
+    rig.state.alt_rel_m = 30.0
+    assert rig.tick(0.0) == Status.RUNNING
+    rig.state.armed = False
+    assert rig.tick(1.0) == Status.FAILURE
+    assert "disarmed in the air at 30.0 m" in rig.tree.root.feedback_message
 
 
 def test_yield_without_hand_back_sends_nothing_at_all():

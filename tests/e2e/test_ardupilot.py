@@ -61,5 +61,5 @@ def test_patrol_right_after_boot_arms_flies_and_lands_with_the_gcs_failsafe_on(a
     out = run.stdout + run.stderr
     assert run.returncode == 0, out
     assert "Arming motors" in out and "GCS Failsafe" not in out, out
-    ticks = int(re.search(r"success: .* after (\d+) ticks", out).group(1))
+    ticks = int(re.search(r"completed: .* after (\d+) ticks", out).group(1))
     assert ticks > 1000  # a 100 m square at 10 Hz, not the 2-tick "success" on a disarmed vehicle

@@ -92,7 +92,7 @@ def test_run_flies_the_simulator_over_tcp_to_a_landing(signed, tmp_path):
         assert url, "the simulator printed no tcp connection string"
         run = subprocess.run([*CLI, "run", str(TREE), "--connect", url, *signing], capture_output=True, text=True, timeout=240)
         assert run.returncode == 0, run.stdout + run.stderr
-        assert "success" in run.stdout
+        assert run.stdout.splitlines()[-1].startswith("completed: return and land: landed and disarmed")
     finally:
         sim.terminate()
         sim.wait(timeout=10)
@@ -112,9 +112,10 @@ def test_a_patrol_whose_take_off_fails_fails_and_never_reports_success(tree):
     never_ready = dataclasses.replace(load_scenario(SCENARIO), boot=BootParams(5.0, 25.0, 1e9))
     report = rehearse(ROOT / "trees" / tree, never_ready, seed=1,
                       link_config=LinkConfig(target_sysid=1, ready_timeout_s=30.0))  # 1: the simulator's SYSID_THISMAV
-    # The root failed (the bench's "error"); the last node to answer was the fallback's "in the air?".
-    assert report.outcome == "error" and report.max_alt_m < 1.0
-    assert report.message.startswith("Airborne"), report.message
+    # The root failed (the bench's "error"); the cause named is the take-off's, not the fallback's
+    # "in the air?" that answered after it.
+    assert report.outcome == "error" and report.max_alt_m < 1.0 and report.mission_outcome == "failed"
+    assert report.message.startswith("ArmAndTakeoff: arming failed"), report.message
 
 
 def test_a_patrol_cut_short_by_the_battery_still_flies_home(tmp_path):
@@ -126,3 +127,37 @@ def test_a_patrol_cut_short_by_the_battery_still_flies_home(tmp_path):
     report = rehearse(TREE, path, seed=1)
     assert report.outcome == "landed", report.message
     assert report.landed_dist_m < 3.0 and report.distance_flown_m < 390  # the square was cut short
+
+
+def test_run_says_crashed_and_exits_6_when_the_aircraft_is_disarmed_in_the_air(tmp_path):
+    """A second ground station force-disarms the aircraft on the first leg: never "success", never "landed"."""
+    scenario = yaml.safe_load(SCENARIO.read_text())
+    scenario["faults"] = [{"at_s": 62.0, "kind": "disarm"}]
+    path = tmp_path / "disarm.yaml"
+    path.write_text(yaml.safe_dump(scenario))
+    sim = subprocess.Popen([*CLI, "sitl", "--scenario", str(path), "--speedup", "10", "--tcp-port", "0", "--udp-port", "0"],
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=dict(os.environ, PYTHONUNBUFFERED="1"))
+    try:
+        url = next((m.group(1) for line in sim.stdout if (m := re.search(r"(tcp:127\.0\.0\.1:\d+)", line))), None)
+        assert url, "the simulator printed no tcp connection string"
+        run = subprocess.run([*CLI, "run", str(TREE), "--connect", url], capture_output=True, text=True, timeout=240)
+        assert run.returncode == 6, run.stdout + run.stderr
+        assert run.stdout.splitlines()[-1].startswith("crashed: disarmed in the air at"), run.stdout
+    finally:
+        sim.terminate()
+        sim.wait(timeout=10)
+
+
+def test_run_with_require_failsafes_refuses_a_vehicle_without_a_fence():
+    sim = subprocess.Popen([*CLI, "sitl", "--scenario", str(SCENARIO), "--speedup", "10", "--tcp-port", "0", "--udp-port", "0"],
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=dict(os.environ, PYTHONUNBUFFERED="1"))
+    try:
+        url = next((m.group(1) for line in sim.stdout if (m := re.search(r"(tcp:127\.0\.0\.1:\d+)", line))), None)
+        assert url, "the simulator printed no tcp connection string"
+        run = subprocess.run([*CLI, "run", str(TREE), "--connect", url, "--require-failsafes"], capture_output=True, text=True, timeout=60)
+        assert run.returncode == 2, run.stdout + run.stderr
+        assert "warning: FENCE_ENABLE = 0: no geofence" in run.stderr and "--require-failsafes" in run.stderr
+        assert "flying" not in run.stdout  # refused before the first tick
+    finally:
+        sim.terminate()
+        sim.wait(timeout=10)

@@ -100,6 +100,34 @@ def test_sys_status_gives_prearm_flag_and_battery_in_si():
     assert not s.prearm_ok and math.isnan(s.battery_voltage_v) and math.isnan(s.battery_remaining_pct)
 
 
+@pytest.mark.parametrize(("enabled", "health", "on", "breached"), [
+    (0, 0, False, False),  # FENCE_ENABLE 0: not enabled, nothing breached
+    (1, 1, True, False),  # on and healthy
+    (1, 0, True, True),  # on and breached (AC_Fence clears the health bit)
+])
+def test_sys_status_geofence_bits_give_the_fence_state(enabled, health, on, breached):
+    fence = mavlink2.MAV_SYS_STATUS_GEOFENCE
+    s = VehicleState()
+    update_state(s, roundtrip(mavlink2.MAVLink_sys_status_message(fence, enabled * fence, health * fence, 0, 22150, 0, 64,
+                                                                  0, 0, 0, 0, 0, 0)), None)
+    assert (s.fence_enabled, s.fence_breached) == (on, breached)
+
+
+def test_the_autopilots_battery_failsafe_from_charge_state_and_from_its_text():
+    s = VehicleState()
+    msg = mavlink2.MAVLink_battery_status_message(0, 0, 0, 0, [22150] + [65535] * 9, 100, 0, 0, 80)
+    update_state(s, roundtrip(msg), None)
+    assert not s.battery_failsafe and s.battery_remaining_pct == 80  # no charge state: OK
+    msg.charge_state = mavlink2.MAV_BATTERY_CHARGE_STATE_LOW
+    update_state(s, roundtrip(msg), None)
+    assert s.battery_failsafe
+    t = VehicleState()
+    update_state(t, roundtrip(mavlink2.MAVLink_statustext_message(2, b"Battery 1 is low 19.48V used 337 mAh")), None)
+    assert t.battery_failsafe
+    update_state(t := VehicleState(), roundtrip(mavlink2.MAVLink_statustext_message(6, b"Battery 1 is fine")), None)
+    assert not t.battery_failsafe
+
+
 @pytest.mark.parametrize(
     ("flags", "ok"),
     [

@@ -7,7 +7,8 @@ second mosaic (weight Beta(``mixup_beta``, ``mixup_beta``), boxes of both), HSV 
 probability ``blur`` a motion or Gaussian blur, and horizontal flips.
 Optimiser: AdamW with a linear warm-up and a cosine decay; an exponential moving average of the
 weights (YOLOv5) is what gets saved. ``init_weights`` fine-tunes from a saved model (same classes)
-instead of starting from scratch; ``small_box_px`` > 0 draws the images holding a box narrower than
+instead of starting from scratch, and ``widths`` grows its stages first
+(:func:`chaser_bt.vision.detector.widen.widen`) or sizes a net trained from scratch; ``small_box_px`` > 0 draws the images holding a box narrower than
 that ``small_weight`` times as often (small targets are the common misses); ``obj_iou`` > 0 makes
 objectness learn the predicted box's IoU (:func:`chaser_bt.vision.detector.loss.detection_loss`).
 """
@@ -19,7 +20,7 @@ import logging
 import math
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Iterator
 
@@ -54,6 +55,7 @@ class TrainConfig:
     checkpoint_every: int = 50
     ema_decay: float = 0.995
     init_weights: str = ""
+    widths: tuple[int, ...] | None = None
     small_box_px: float = 0.0
     small_weight: float = 3.0
     obj_iou: float = 0.0
@@ -163,14 +165,18 @@ def train_detector(cfg: TrainConfig, resume: bool = True, progress="stderr") -> 
     rng = np.random.default_rng(cfg.seed)
     images, boxes, classes = load_yolo_folder(cfg.data_dir, cfg.image_size)
     det_cfg = DetectorConfig(num_classes=len(classes), class_names=classes)
+    if cfg.widths is not None:
+        det_cfg = replace(det_cfg, widths=tuple(cfg.widths))
     model = TinyYolo(det_cfg)
     if cfg.init_weights:
         from chaser_bt.vision.detector.inference import load_model
+        from chaser_bt.vision.detector.widen import widen
 
         start = load_model(cfg.init_weights)
         if start.config.class_names != classes:
             raise ValueError(f"init weights {cfg.init_weights}: classes {start.config.class_names} differ from the data's {classes}")
-        model.load_state_dict(start.state_dict())
+        model = widen(start, cfg.widths) if cfg.widths is not None else start
+        det_cfg = model.config
     p_small = sampling_weights(boxes, cfg.small_box_px, cfg.small_weight)
     ema = copy.deepcopy(model).eval()
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)

@@ -47,10 +47,31 @@ def test_circle_and_altitude_breaches():
     assert fence_breaches(p, 60.0, 31.0) == FENCE_CIRCLE | FENCE_ALT_MAX
 
 
+def _push(ap, run_for, velocity_enu, seconds: float) -> None:
+    """Fly a GUIDED velocity, re-sent every half second while in GUIDED (GUIDED refuses positions outside the fence)."""
+    for _ in range(int(seconds / 0.5)):
+        if ap.mode != "GUIDED":
+            break
+        assert ap.set_velocity_target(velocity_enu)
+        run_for(ap, 0.5)
+
+
+def test_guided_refuses_a_target_outside_the_fence_and_keeps_the_old_one(airborne, run_for):
+    # ModeGuided::set_destination -> AC_Fence::check_destination_within_fence
+    ap = airborne(10.0, params={"FENCE_ENABLE": 1, "FENCE_RADIUS": 20, "FENCE_ALT_MAX": 30})
+    hx, hy, hz = ap.home_enu
+    assert ap.set_position_target([hx + 15.0, hy, hz + 10.0])  # inside
+    assert not ap.set_position_target([hx + 40.0, hy, hz + 10.0])  # beyond the circle
+    assert not ap.set_position_target([hx, hy, hz + 35.0])  # above the ceiling
+    run_for(ap, 15.0)
+    assert ap.fence_breaches == 0 and ap.mode == "GUIDED"
+    assert abs(ap.truth.pos_enu[0] - (hx + 15.0)) < 2.0  # flew the accepted target and held it
+
+
 def test_a_circle_breach_sends_the_vehicle_home_in_rtl(airborne, run_for):
     ap = airborne(10.0, params={"FENCE_ENABLE": 1, "FENCE_RADIUS": 20})
-    assert ap.set_position_target([40.0, 0.0, ap.home_enu[2] + 10.0])
-    run_for(ap, 15.0)
+    _push(ap, run_for, [6.0, 0.0, 0.0], 6.0)
+    run_for(ap, 9.0)
     assert ap.mode_number == RTL
     assert (5, "Fence Breached") in ap.pop_statustexts()
     assert ap.fence_breaches & FENCE_CIRCLE or ap.truth.pos_enu[0] < 20.0  # on its way back
@@ -58,8 +79,8 @@ def test_a_circle_breach_sends_the_vehicle_home_in_rtl(airborne, run_for):
 
 def test_report_only_announces_the_breach_and_keeps_the_mode(airborne, run_for):
     ap = airborne(10.0, params={"FENCE_ENABLE": 1, "FENCE_ALT_MAX": 12, "FENCE_ACTION": 0})
-    assert ap.set_position_target([0.0, 0.0, ap.home_enu[2] + 15.0])
-    run_for(ap, 6.0)
+    _push(ap, run_for, [0.0, 0.0, 2.0], 3.0)
+    run_for(ap, 3.0)
     assert ap.fence_breaches == FENCE_ALT_MAX
     assert ap.mode == "GUIDED"
     assert (5, "Fence Breached") in ap.pop_statustexts()

@@ -1,0 +1,34 @@
+"""The autopilot's safety settings, read at connect: each one off is named, with what to set."""
+
+from __future__ import annotations
+
+from chaser_bt.mission.preflight import SAFETY_SETTINGS, safety_warnings
+
+# ArduCopter's defaults for these (Copter parameters.cpp, AP_BattMonitor_Params, AC_Fence):
+ARDUCOPTER_DEFAULTS = {"FS_GCS_ENABLE": 0, "BATT_FS_LOW_ACT": 0, "BATT_LOW_VOLT": 0, "FENCE_ENABLE": 0, "RTL_ALT": 1500}
+FIELD_READY = {"FS_GCS_ENABLE": 1, "BATT_FS_LOW_ACT": 2, "BATT_LOW_VOLT": 21.0, "FENCE_ENABLE": 1, "RTL_ALT": 3000}
+
+
+def test_arducopters_defaults_leave_four_of_five_off():
+    names = [w.split(" ")[0] for w in safety_warnings(ARDUCOPTER_DEFAULTS)]
+    assert names == ["FS_GCS_ENABLE", "BATT_FS_LOW_ACT", "BATT_LOW_VOLT", "FENCE_ENABLE"]
+
+
+def test_a_field_ready_vehicle_has_no_warning():
+    assert safety_warnings(FIELD_READY) == []
+
+
+def test_low_rtl_alt_and_unread_values_are_warned_about():
+    params = dict(FIELD_READY, RTL_ALT=500)
+    del params["FENCE_ENABLE"]
+    warnings = safety_warnings(params)
+    assert warnings[0].startswith("FENCE_ENABLE unread")
+    assert warnings[1].startswith("RTL_ALT = 500: RTL_ALT under 15 m")
+    assert safety_warnings(dict(FIELD_READY, RTL_ALT=0)) == []  # 0: return at the current altitude
+
+
+def test_every_setting_is_one_the_simulator_and_arducopter_know():
+    from sitl.vehicle.params import PARAM_SPECS
+
+    known = {p.name for p in PARAM_SPECS}
+    assert {s.name for s in SAFETY_SETTINGS} <= known
