@@ -18,10 +18,11 @@ import py_trees
 from pymavlink import mavutil
 
 from chaser_bt.clock import Clock
+from chaser_bt.control.progress import ProgressWatch
 from chaser_bt.tree import input_port
 from chaser_bt.vehicle import VehicleLink, VehicleState
 
-__all__ = ["CommandingBehaviour", "FlightMode", "VehicleBehaviour", "state_port"]
+__all__ = ["CommandingBehaviour", "FlightMode", "VehicleBehaviour", "stall_message", "state_port"]
 
 Status = py_trees.common.Status
 
@@ -94,3 +95,19 @@ def optional_input(node: py_trees.ports.PortsMixin, port: str) -> Any:
         return node.get_input(port)
     except Exception:  # nothing written to the key yet
         return None
+
+
+_NOTICE = 5  # MAV_SEVERITY_NOTICE: the autopilot's warnings and worse, not its chatter ("Arming motors")
+
+
+def stall_message(watch: ProgressWatch, now: float, distance_m: float, state: VehicleState) -> str:
+    """Why a movement failed: how long without progress, how far to go, and what the autopilot said meanwhile."""
+    since = watch.since_s(now)
+    said = [text for t, severity, text in state.statustexts if t >= state.t_boot_s - since and severity <= _NOTICE]
+    if said:
+        why = f"the autopilot said: {said[-1]}"
+    elif state.fence_enabled:
+        why = "the autopilot's fence is on: GUIDED refuses a target outside it"
+    else:
+        why = "the autopilot is not flying the target (wind? a lost command?)"
+    return f"no progress for {since:.0f} s with {distance_m:.0f} m to go: {why}"

@@ -7,10 +7,9 @@ import enum
 import numpy as np
 import py_trees
 
-from behaviours.base import CommandingBehaviour, state_port
+from behaviours.base import CommandingBehaviour, stall_message, state_port
 from chaser_bt.control.progress import ProgressWatch
 from chaser_bt.geo import GeoPoint
-from chaser_bt.vehicle import VehicleState
 from chaser_bt.tree import input_port, register_behaviour
 
 Status = py_trees.common.Status
@@ -97,15 +96,3 @@ class GoTo(CommandingBehaviour):
         lat, lon, alt_rel = waypoint
         return frame.point_to_enu(GeoPoint(lat, lon, home.alt_m + alt_rel))
 
-
-def stall_message(watch: ProgressWatch, now: float, distance_m: float, state: VehicleState) -> str:
-    """Why a movement failed: how long without progress, how far to go, and what the autopilot said meanwhile."""
-    since = watch.since_s(now)
-    said = [text for t, _, text in state.statustexts if t >= state.t_boot_s - since]
-    if said:
-        why = f"the autopilot said: {said[-1]}"
-    elif state.fence_enabled:
-        why = "the autopilot's fence is on: GUIDED refuses a target outside it"
-    else:
-        why = "the autopilot is not flying the target (wind? a lost command?)"
-    return f"no progress for {since:.0f} s with {distance_m:.0f} m to go: {why}"

@@ -5,18 +5,21 @@ starts has nothing to return from, and "landed and disarmed" would report a flig
 flew (a tree whose take-off failed, ticked into its RTL, must not end in SUCCESS). They fail then,
 without commanding anything. And "landed" means a touchdown seen before the disarm
 (:class:`~chaser_bt.vehicle.touchdown.TouchdownJudge`): an aircraft disarmed in the air fails the
-leaf as a crash, never "landed".
+leaf as a crash, never "landed". A return or descent that gets no nearer the ground at home for
+``stall_s`` fails too, with what the autopilot said, instead of waiting for ever.
 """
 
 from __future__ import annotations
 
 import abc
 
+import numpy as np
 import py_trees
 
-from behaviours.base import CommandingBehaviour, state_port
+from behaviours.base import CommandingBehaviour, stall_message, state_port
+from chaser_bt.control.progress import ProgressWatch
 from chaser_bt.tree import input_port, register_behaviour
-from chaser_bt.vehicle import Command
+from chaser_bt.vehicle import Command, VehicleState
 from chaser_bt.vehicle.touchdown import Touchdown, TouchdownJudge
 
 Status = py_trees.common.Status
@@ -32,6 +35,8 @@ class _AutopilotLanding(CommandingBehaviour):
 
     INPUT_PORTS = {
         "wait_landed": input_port(bool, "Stay RUNNING until landed and disarmed", default=True),
+        "stall_s": input_port(float, "Fail after this long without coming 2 m nearer home's ground (s; 0 = never)",
+                              default=60.0, minimum=0),
         "state": state_port(),
     }
     OUTPUT_PORTS: dict = {}
@@ -42,6 +47,7 @@ class _AutopilotLanding(CommandingBehaviour):
 
     def initialise(self) -> None:
         self._touchdown = TouchdownJudge()
+        self._progress = ProgressWatch(window_s=self.get_input("stall_s"))
         self._command: Command | None = self._request() if self.state.armed else None
 
     def update(self) -> Status:
@@ -68,8 +74,17 @@ class _AutopilotLanding(CommandingBehaviour):
         if state.mode != self.MODE:
             self.feedback_message = f"left {self.MODE} for {state.mode} before landing"
             return Status.FAILURE
+        to_go = self._to_go(state)
+        self._progress.observe(self._now(), to_go)
+        if self._progress.stalled(self._now()):
+            self.feedback_message = stall_message(self._progress, self._now(), to_go, state)
+            return Status.FAILURE
         self.feedback_message = f"{self.MODE}: {state.alt_rel_m:.1f} m above home"
         return Status.RUNNING
+
+    def _to_go(self, state: VehicleState) -> float:
+        """Distance left to the ground at home: the way down, and for RTL the way back."""
+        return float(state.alt_rel_m)
 
 
 @register_behaviour
@@ -80,6 +95,14 @@ class RTL(_AutopilotLanding):
 
     def _request(self) -> Command:
         return self._link().rtl()
+
+    def _to_go(self, state: VehicleState) -> float:
+        frame, home = self._link().frame, state.home
+        if frame is None or home is None:
+            return float(state.alt_rel_m)
+        east, north, _ = frame.point_to_enu(home)
+        pos = state.position_enu
+        return float(np.hypot(np.hypot(pos[0] - east, pos[1] - north), state.alt_rel_m))
 
 
 @register_behaviour

@@ -81,6 +81,12 @@ class _FakeLink:
         self.sent.append("hover")
         return True
 
+    frame = None  # no mission frame: RTL measures only the way down
+
+    def rtl(self):
+        self.sent.append("rtl")
+        return type("Cmd", (), {"done": True, "ok": True})()
+
 
 # ---------------------------------------------------------------------------- mode authority
 
@@ -293,3 +299,18 @@ trees:
     assert "bad.yaml:7:" in problems[1] and "'radius_m' of GeofenceBreached must be >= 0, got -5" in problems[1]
     assert "bad.yaml:8:" in problems[2] and "'channel' of PilotGate must be 0..18, got 40" in problems[2]
     assert "bad.yaml:9:" in problems[3] and "'standoff_m' of FlyToCue must be >= 0, got -1" in problems[3]
+
+
+def test_an_rtl_that_gets_no_nearer_the_ground_fails_with_the_autopilots_last_word():
+    rig = _Rig("RTL: {stall_s: 20}")
+    rig.state.armed, rig.state.mode, rig.state.landed_state = True, "RTL", rig.state.landed_state.IN_AIR
+    rig.state.alt_rel_m, rig.state.velocity_enu, rig.state.t_boot_s = 30.0, np.zeros(3), 100.0
+    assert rig.tick(100.0) == Status.RUNNING and rig.link.sent == ["rtl"]
+    rig.state.statustexts.append((110.0, 4, "Terrain data missing"))
+    for t in (105.0, 110.0, 115.0, 120.0):
+        rig.state.alt_rel_m, rig.state.t_boot_s = 29.5, t  # hovering: RTL is not coming down
+        assert rig.tick(t) == Status.RUNNING
+    rig.state.t_boot_s = 120.5
+    assert rig.tick(120.5) == Status.FAILURE
+    assert rig.tree.root.feedback_message.startswith(
+        "no progress for 20 s with 30 m to go: the autopilot said: Terrain data missing")
