@@ -256,7 +256,7 @@ def rehearse(
         outcome, message = "error", f"{type(exc).__name__}: {exc}"
         run_status = RunStatus.ERROR
     finally:
-        sim_time_s = sim.time_s
+        sim_time_s, battery_end = sim.time_s, sim.autopilot.battery().remaining_pct  # the flight's, before the settle
         if not interrupted:  # the mission has stopped: where does its last command leave the aircraft?
             _settle(vehicle, safety, SETTLE_S)
         mission_sensors.close()
@@ -281,7 +281,7 @@ def rehearse(
         landed_dist_m=None if scorer.landed_dist_m is None else round(scorer.landed_dist_m, 2),
         max_alt_m=round(scorer.max_alt_m, 2),
         distance_flown_m=round(scorer.distance_m, 1),
-        battery_used_pct=_battery_used(battery_start, sim.autopilot.battery().remaining_pct),
+        battery_used_pct=_battery_used(battery_start, battery_end),
         message=message,
         mission_outcome=verdict.outcome.value,
         final_state=safety.state or None,
@@ -295,7 +295,7 @@ def rehearse(
         sensors_wall_s=round(sensors_wall, 3),
     )
     meta: dict = {"tree": tree.name, "scenario": scenario.name, "seed": seed, "outcome": outcome}
-    people = people_enu(sim.scenario, sim.time_s)
+    people = people_enu(sim.scenario, sim_time_s)
     if people:  # for the overhead figure: where the people were, and the find
         meta["people_enu"] = [[round(float(v), 2) for v in p] for p in people]
         if sar.find is not None:
