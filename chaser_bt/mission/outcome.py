@@ -12,7 +12,9 @@ the tree's ``/mission/phase`` (the shipped trees' guards write ``safety:<why>`` 
 from __future__ import annotations
 
 import enum
+import logging
 import re
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -21,6 +23,8 @@ from chaser_bt.vehicle.state import VehicleState, statustext_str
 from chaser_bt.vehicle.touchdown import Touchdown, TouchdownJudge
 
 __all__ = ["EXIT_CODES", "FlightWitness", "Outcome", "PHASE_KEY", "Verdict", "judge"]
+
+log = logging.getLogger(__name__)
 
 #: Where trees name what the aircraft is doing; a guard's branch writes ``safety:<why>``.
 PHASE_KEY = "/mission/phase"
@@ -87,7 +91,7 @@ class FlightWitness:
 
     touchdown: TouchdownJudge = field(default_factory=TouchdownJudge)
     authority: ModeAuthority | None = None
-    texts: list[tuple[float, str]] = field(default_factory=list)  # the autopilot's failsafe-like texts
+    texts: deque[tuple[float, str]] = field(default_factory=lambda: deque(maxlen=100))  # the autopilot's failsafe-like texts
     crash: str = ""  # the first disarm in the air, in words
     _clock: Callable[[], float] | None = field(default=None, repr=False)
     _vehicle_sysid: Callable[[], int | None] = field(default=lambda: None, repr=False)
@@ -122,7 +126,7 @@ class FlightWitness:
                 if _AUTOPILOT_TEXT.search(text):
                     self.texts.append((float(self._clock()), text))
         except Exception:  # a listener must not raise into the link
-            pass
+            log.debug("could not read a received message", exc_info=True)
 
 
 def judge(status: str, message: str, witness: FlightWitness, phase: str | None = None, *, link_lost: bool = False) -> Verdict:

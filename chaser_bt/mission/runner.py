@@ -12,9 +12,12 @@ The runner owns the wiring every mission shares, so behaviours stay thin:
   home). A freshly booted ArduCopter sends HEARTBEATs long before its home is set, and a tree
   ticked on that reads "battery unknown" and "disarmed on the ground". The wait is bounded
   (``telemetry_timeout_s`` on the link's clock) and ends in an error naming what never came;
-* a stop (success, failure, Ctrl-C, an exception in a leaf) halts the tree, which makes every
-  running leaf terminate and hover, then sends the hover command once more for good measure
-  (paper section 3.2: hover on exit).
+* a stop (success, failure, Ctrl-C, an exception in a leaf, a disarm in the air) halts the tree,
+  which makes every running leaf terminate and hover, then sends the hover command once more for
+  good measure (paper section 3.2: hover on exit); :meth:`run` then watches the hold take effect
+  (:meth:`confirm_hold`);
+* every run ends in one outcome (:mod:`chaser_bt.mission.outcome`): the root's status judged with
+  what a :class:`~chaser_bt.mission.outcome.FlightWitness` saw of the vehicle beside the tree.
 """
 
 from __future__ import annotations
