@@ -35,13 +35,14 @@ def _wait_for_line(stream, needle: str, timeout_s: float) -> None:
     raise AssertionError(f"no line with {needle!r} within {timeout_s} s")
 
 
-# Long enough in simulated time to be still flying when the signal comes: the whole patrol takes
-# under a second of wall time now, less than the test may take to read the first tick's line.
+# Long enough in simulated time to be still flying when the signal comes, even on a loaded machine:
+# without a camera a rehearsal runs hundreds of times faster than real time, so the whole patrol
+# takes under a second of wall time. Flown in a scenario whose time limit allows it (_long_scenario).
 HOLD = """\
 <root BTCPP_format="4">
   <BehaviorTree ID="Hold">
     <Sequence name="hold">
-      <Wait name="wait" duration_s="590"/>
+      <Wait name="wait" duration_s="7000"/>
       <AlwaysSuccess name="done"/>
     </Sequence>
   </BehaviorTree>
@@ -53,7 +54,9 @@ HOLD = """\
 def test_rehearse_interrupted_writes_a_partial_report_and_exits_130(sig, tmp_path):
     tree = tmp_path / "hold.xml"
     tree.write_text(HOLD)
-    proc = _cli("rehearse", str(tree), "--scenario", SCENARIO, "--no-camera", "--json", "--show-ticks",
+    scenario = tmp_path / "long.yaml"
+    scenario.write_text(Path(SCENARIO).read_text().replace("time_limit_s: 600", "time_limit_s: 7200"))
+    proc = _cli("rehearse", str(tree), "--scenario", str(scenario), "--no-camera", "--json", "--show-ticks",
                 "--report", str(tmp_path / "report"))
     try:
         _wait_for_line(proc.stderr, "--- t = ", 120)  # the tree is ticking: the vehicle is being flown
