@@ -56,6 +56,7 @@ def test_rehearse_interrupted_writes_a_partial_report_and_exits_130(sig, tmp_pat
     tree.write_text(HOLD)
     scenario = tmp_path / "long.yaml"
     scenario.write_text(Path(SCENARIO).read_text().replace("time_limit_s: 600", "time_limit_s: 7200"))
+    assert "time_limit_s: 7200" in scenario.read_text()
     proc = _cli("rehearse", str(tree), "--scenario", str(scenario), "--no-camera", "--json", "--show-ticks",
                 "--report", str(tmp_path / "report"))
     try:
