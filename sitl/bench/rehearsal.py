@@ -256,12 +256,15 @@ def rehearse(
         outcome, message = "error", f"{type(exc).__name__}: {exc}"
         run_status = RunStatus.ERROR
     finally:
-        sim_time_s, battery_end = sim.time_s, sim.autopilot.battery().remaining_pct  # the flight's, before the settle
+        # the flight's figures, before the settle
+        sim_time_s, battery_end, wall = sim.time_s, sim.autopilot.battery().remaining_pct, time.perf_counter() - wall_start
         if not interrupted:  # the mission has stopped: where does its last command leave the aircraft?
-            _settle(vehicle, safety, SETTLE_S)
+            try:
+                _settle(vehicle, safety, SETTLE_S)
+            except Exception:  # scoring only: never hide how the flight itself ended
+                log.exception("could not simulate the settle after the mission stopped")
         mission_sensors.close()
         vehicle.close()
-    wall = time.perf_counter() - wall_start
     if verdict is None:
         verdict = runner.verdict(run_status, message)
 
@@ -274,7 +277,7 @@ def rehearse(
         seed=seed,
         sim_time_s=round(sim_time_s, 3),
         wall_time_s=round(wall, 3),
-        realtime_factor=round(sim.time_s / wall, 1) if wall > 0 else math.inf,
+        realtime_factor=round(sim_time_s / wall, 1) if wall > 0 else math.inf,
         ticks=runner.ticks,
         status_changes=len(runner.tick_log),
         tick_ms_median=round(statistics.median(ticks_ms), 4) if ticks_ms else 0.0,
