@@ -20,8 +20,11 @@ SCENARIO = str(ROOT / "sitl" / "scenarios" / "patrol.yaml")
 
 def _cli(*args: str) -> subprocess.Popen:
     env = dict(os.environ, PYTHONPATH=str(ROOT), MAVLINK20="1")
+    # A shell that starts the suite in the background ignores SIGINT, and Python keeps an inherited
+    # "ignore": give the command the default disposition, as in a terminal.
     return subprocess.Popen([sys.executable, "-m", "chaser_bt.cli", *args], cwd=ROOT, env=env, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 def _wait_for_line(stream, needle: str, timeout_s: float) -> None:
@@ -60,7 +63,7 @@ def test_rehearse_interrupted_writes_a_partial_report_and_exits_130(sig, tmp_pat
     proc = _cli("rehearse", str(tree), "--scenario", str(scenario), "--no-camera", "--json", "--show-ticks",
                 "--report", str(tmp_path / "report"))
     try:
-        _wait_for_line(proc.stderr, "--- t = ", 120)  # the tree is ticking: the vehicle is being flown
+        _wait_for_line(proc.stderr, "hold (Sequence)", 120)  # the first tick's tree: the vehicle is being flown
         proc.send_signal(sig)
         out, err = proc.communicate(timeout=60)
     finally:
