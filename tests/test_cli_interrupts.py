@@ -120,3 +120,27 @@ def test_run_on_sigterm_halts_the_tree_finishes_the_log_and_exits_130(tmp_path):
     from chaser_bt.log.replay import read_log
 
     assert not read_log(tmp_path / "f.mcap").truncated  # the recorder finished the file
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("speedup", ["1", "10"])
+def test_run_on_sigterm_mid_leg_confirms_the_hold_at_any_speed(speedup):
+    """SIGTERM while the patrol flies its first leg: the exit line says the hold took, at 1x as at 10x."""
+    sim = _cli("sitl", "--scenario", SCENARIO, "--speedup", speedup, "--tcp-port", "15763", "--udp-port", "15553")
+    try:
+        _wait_for_line(sim.stdout, "connect with", 60)
+        run = _cli("run", PATROL, "--connect", "tcp:127.0.0.1:15763", "--show-ticks")
+        try:
+            # the first leg is under way; a few seconds more at 1x for it to pick up speed
+            _wait_for_line(run.stdout, "ArmAndTakeoff RUNNING->SUCCESS", 600 / float(speedup) + 60)
+            time.sleep(3.0 / float(speedup))
+            run.send_signal(signal.SIGTERM)
+            out, err = run.communicate(timeout=60)
+        finally:
+            run.kill()
+    finally:
+        sim.send_signal(signal.SIGTERM)
+        sim.communicate(timeout=30)
+    assert run.returncode == 130, err
+    last = out.strip().splitlines()[-1]
+    assert last.startswith("interrupted: ") and "hold confirmed: GUIDED at" in last, last
