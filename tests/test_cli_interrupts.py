@@ -98,16 +98,17 @@ def test_campaign_stops_within_5_s_of_ctrl_c_with_workers(tmp_path):
     assert 0 < len(kept) < 60 and f"{len(kept)} finished run(s) kept" in err
 
 
-@pytest.mark.slow
-def test_run_on_sigterm_halts_the_tree_finishes_the_log_and_exits_130(tmp_path):
-    # 2x: the vehicle's 5 s GCS failsafe is then 2.5 s of wall time, more than a loaded machine starves a process
-    sim = _cli("sitl", "--scenario", SCENARIO, "--speedup", "2", "--tcp-port", "15761", "--udp-port", "15551")
+def _sigterm_mid_flight(speedup: str, port: int, run_args: list[str], started: str, timeout_s: float,
+                        delay_s: float) -> tuple[subprocess.Popen, str, str]:
+    """Fly the patrol with ``run`` against ``chaser-bt sitl``, SIGTERM ``run`` ``delay_s`` after the line
+    ``started``; the finished ``run`` process and its output."""
+    sim = _cli("sitl", "--scenario", SCENARIO, "--speedup", speedup, "--tcp-port", str(port), "--udp-port", str(port - 210))
     try:
         _wait_for_line(sim.stdout, "connect with", 60)
-        run = _cli("run", PATROL, "--connect", "tcp:127.0.0.1:15761", "--record", str(tmp_path / "f.mcap"))
+        run = _cli("run", PATROL, "--connect", f"tcp:127.0.0.1:{port}", *run_args)
         try:
-            _wait_for_line(run.stdout, "flying", 60)
-            time.sleep(3.0)
+            _wait_for_line(run.stdout, started, timeout_s)
+            time.sleep(delay_s)
             run.send_signal(signal.SIGTERM)
             out, err = run.communicate(timeout=60)
         finally:
@@ -115,6 +116,13 @@ def test_run_on_sigterm_halts_the_tree_finishes_the_log_and_exits_130(tmp_path):
     finally:
         sim.send_signal(signal.SIGTERM)
         sim.communicate(timeout=30)
+    return run, out, err
+
+
+@pytest.mark.slow
+def test_run_on_sigterm_halts_the_tree_finishes_the_log_and_exits_130(tmp_path):
+    # 2x: the vehicle's 5 s GCS failsafe is then 2.5 s of wall time, more than a loaded machine starves a process
+    run, out, err = _sigterm_mid_flight("2", 15761, ["--record", str(tmp_path / "f.mcap")], "flying", 60, 3.0)
     assert run.returncode == 130, err
     assert "interrupted" in out and "Traceback" not in err
     from chaser_bt.log.replay import read_log
@@ -126,21 +134,9 @@ def test_run_on_sigterm_halts_the_tree_finishes_the_log_and_exits_130(tmp_path):
 @pytest.mark.parametrize("speedup", ["1", "10"])
 def test_run_on_sigterm_mid_leg_confirms_the_hold_at_any_speed(speedup):
     """SIGTERM while the patrol flies its first leg: the exit line says the hold took, at 1x as at 10x."""
-    sim = _cli("sitl", "--scenario", SCENARIO, "--speedup", speedup, "--tcp-port", "15763", "--udp-port", "15553")
-    try:
-        _wait_for_line(sim.stdout, "connect with", 60)
-        run = _cli("run", PATROL, "--connect", "tcp:127.0.0.1:15763", "--show-ticks")
-        try:
-            # the first leg is under way; a few seconds more at 1x for it to pick up speed
-            _wait_for_line(run.stdout, "ArmAndTakeoff RUNNING->SUCCESS", 600 / float(speedup) + 60)
-            time.sleep(3.0 / float(speedup))
-            run.send_signal(signal.SIGTERM)
-            out, err = run.communicate(timeout=60)
-        finally:
-            run.kill()
-    finally:
-        sim.send_signal(signal.SIGTERM)
-        sim.communicate(timeout=30)
+    # the first leg is under way once the take-off succeeds; a few seconds more at 1x for it to pick up speed
+    run, out, err = _sigterm_mid_flight(speedup, 15763, ["--show-ticks"], "ArmAndTakeoff RUNNING->SUCCESS",
+                                        600 / float(speedup) + 60, 3.0 / float(speedup))
     assert run.returncode == 130, err
     last = out.strip().splitlines()[-1]
     assert last.startswith("interrupted: ") and "hold confirmed: GUIDED at" in last, last

@@ -55,6 +55,7 @@ __all__ = [
     "add_command",
     "aggregate",
     "find_scenarios",
+    "false_success",
     "followed_s",
     "parse_seeds",
     "run_campaign",
@@ -647,7 +648,7 @@ def aggregate(rows: Sequence[Mapping[str, Any]], success: Callable[[Mapping[str,
     found = [bool(r["sar_found"]) for r in rows if r.get("sar_found") is not None]
     if found:
         extra["sar_found_frac"] = sum(found) / len(found)
-    extra["false_successes"] = sum(1 for r in rows if _false_success(r))
+    extra["false_successes"] = sum(1 for r in rows if false_success(r))
     extra["unsafe_ends"] = sum(1 for r in rows if r.get("final_state") in UNSAFE_STATES)
     if any(r.get("chaos_fault") for r in rows):
         extra["chaos_faults"] = dict(Counter(str(r["chaos_fault"]) for r in rows if r.get("chaos_fault")))
@@ -663,7 +664,7 @@ def aggregate(rows: Sequence[Mapping[str, Any]], success: Callable[[Mapping[str,
     }
 
 
-def _false_success(row: Mapping[str, Any]) -> bool:
+def false_success(row: Mapping[str, Any]) -> bool:
     """The mission said ``completed`` while the truth shows a crash, a failsafe's landing, or an aircraft left unsafe."""
     return row.get("mission_outcome") == "completed" and (
         row.get("outcome") in ("crashed", "failsafe") or row.get("final_state") in UNSAFE_STATES)
