@@ -12,15 +12,16 @@ leaves that command in force when it fails or is halted; it sends the hover comm
 from __future__ import annotations
 
 import enum
-from typing import Any
+import functools
+from typing import Any, Callable
 
 import py_trees
 from pymavlink import mavutil
 
 from chaser_bt.clock import Clock
-from chaser_bt.control.progress import ProgressWatch
+from chaser_bt.control.progress import ClosingWatch, ProgressWatch
 from chaser_bt.tree import input_port
-from chaser_bt.vehicle import VehicleLink, VehicleState
+from chaser_bt.vehicle import UnsafeCommand, VehicleLink, VehicleState
 
 __all__ = ["CommandingBehaviour", "FlightMode", "VehicleBehaviour", "stall_message", "state_port"]
 
@@ -77,16 +78,54 @@ class VehicleBehaviour(py_trees.ports.BehaviourWithPorts):
 
 
 class CommandingBehaviour(VehicleBehaviour):
-    """A leaf that sends set-points or mode commands: hover when it fails or is halted."""
+    """A leaf that sends set-points or mode commands: hover when it fails or is halted.
+
+    A set-point the link refuses before sending (:class:`~chaser_bt.vehicle.UnsafeCommand`: outside
+    the command envelope, not finite) fails the leaf with the reason, from ``initialise`` or
+    ``update`` alike; the hover of its exit then holds the aircraft where it is.
+    """
 
     #: Set False by leaves whose command is itself a safe end state (RTL, LAND).
     HOVER_ON_HALT = True
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "initialise" in cls.__dict__:
+            cls.initialise = _noting_unsafe(cls.__dict__["initialise"])  # type: ignore[method-assign]
+        if "update" in cls.__dict__:
+            cls.update = _failing_on_unsafe(cls.__dict__["update"])  # type: ignore[method-assign]
 
     def terminate(self, new_status: Status) -> None:
         halted = new_status == Status.INVALID and self.status == Status.RUNNING
         if self.link is not None and (new_status == Status.FAILURE or (halted and self.HOVER_ON_HALT)):
             if self.link.hover():  # nothing is sent to a disarmed aircraft, or one its autopilot flies (RTL, LOITER ...)
                 self.feedback_message = f"{self.feedback_message} (hover sent)".strip()
+
+
+def _noting_unsafe(initialise: Callable[[Any], None]) -> Callable[[Any], None]:
+    @functools.wraps(initialise)
+    def guarded(self: Any) -> None:
+        self._unsafe = None
+        try:
+            initialise(self)
+        except UnsafeCommand as exc:
+            self._unsafe = exc  # update() fails with it: initialise() has no status to return
+    return guarded
+
+
+def _failing_on_unsafe(update: Callable[[Any], Status]) -> Callable[[Any], Status]:
+    @functools.wraps(update)
+    def guarded(self: Any) -> Status:
+        unsafe = getattr(self, "_unsafe", None)
+        try:
+            if unsafe is None:
+                return update(self)
+        except UnsafeCommand as exc:
+            unsafe = exc
+        self._unsafe = None
+        self.feedback_message = f"command not sent: {unsafe}"
+        return Status.FAILURE
+    return guarded
 
 
 def optional_input(node: py_trees.ports.PortsMixin, port: str) -> Any:
@@ -100,7 +139,7 @@ def optional_input(node: py_trees.ports.PortsMixin, port: str) -> Any:
 _NOTICE = 5  # MAV_SEVERITY_NOTICE: the autopilot's warnings and worse, not its chatter ("Arming motors")
 
 
-def stall_message(watch: ProgressWatch, now: float, distance_m: float, state: VehicleState) -> str:
+def stall_message(watch: ProgressWatch | ClosingWatch, now: float, distance_m: float, state: VehicleState) -> str:
     """Why a movement failed: how long without progress, how far to go, and what the autopilot said meanwhile."""
     since = watch.since_s(now)
     said = [text for t, severity, text in state.statustexts if t >= state.t_boot_s - since and severity <= _NOTICE]

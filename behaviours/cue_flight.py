@@ -16,8 +16,9 @@ import math
 import numpy as np
 import py_trees
 
-from behaviours.base import CommandingBehaviour, FlightMode, VehicleBehaviour, optional_input, state_port
+from behaviours.base import CommandingBehaviour, FlightMode, VehicleBehaviour, optional_input, stall_message, state_port
 from chaser_bt.control.cue_approach import approach_point
+from chaser_bt.control.progress import ClosingWatch
 from chaser_bt.cue import TargetCue
 from chaser_bt.tree import NodeKind, input_port, register_behaviour
 from chaser_bt.vehicle import Command
@@ -54,7 +55,9 @@ class FlyToCue(CommandingBehaviour):
     """Fly in GUIDED towards the cue: ``standoff_m`` short of it, ``height_above_m`` over it (never
     below ``min_alt_m``), nose on it. RUNNING while the cue is fresh, re-sending the goal when it
     moves more than ``retarget_m`` or every ``resend_s``; FAILURE (and hover) when the cue is older
-    than ``max_age_s`` or the vehicle is not in GUIDED.
+    than ``max_age_s``, the vehicle is not in GUIDED or is disarmed, or it flies no closer to the goal
+    for ``stall_s`` (:class:`~chaser_bt.control.progress.ClosingWatch`: the autopilot refuses the
+    target, a fence holds it).
     """
 
     INPUT_PORTS = {
@@ -66,6 +69,8 @@ class FlyToCue(CommandingBehaviour):
         "retarget_m": input_port(float, "Re-send the goal when it moved this far (m)", default=5.0, minimum=0),
         "resend_s": input_port(float, "Re-send the goal at least this often (s)", default=1.0, minimum=0),
         "speed_mps": input_port(float, "Horizontal speed (m/s); 0 keeps the vehicle's WPNAV_SPEED", default=0.0, minimum=0),
+        "stall_s": input_port(float, "Fail after this long without flying 2 m towards the goal (s; 0 = never)",
+                              default=30.0, minimum=0),
         "state": state_port(),
     }
     OUTPUT_PORTS: dict = {}
@@ -73,6 +78,7 @@ class FlyToCue(CommandingBehaviour):
     def initialise(self) -> None:
         self._sent_goal: np.ndarray | None = None
         self._sent_at = -math.inf
+        self._progress = ClosingWatch(window_s=self.get_input("stall_s"))
         speed = self.get_input("speed_mps")
         if speed > 0:
             self._link().set_speed(speed)
@@ -81,6 +87,9 @@ class FlyToCue(CommandingBehaviour):
         state, now = self.state, self._now()
         if state.mode != "GUIDED":
             self.feedback_message = f"vehicle is in {state.mode or 'an unknown mode'}, not GUIDED"
+            return Status.FAILURE
+        if not state.armed:
+            self.feedback_message = "vehicle disarmed"
             return Status.FAILURE
         cue: TargetCue | None = optional_input(self, "cue")
         if cue is None or cue.age(now) > self.get_input("max_age_s"):
@@ -92,6 +101,10 @@ class FlyToCue(CommandingBehaviour):
         if moved > self.get_input("retarget_m") or now - self._sent_at >= self.get_input("resend_s"):
             self._link().goto_enu(plan.goal_enu, plan.yaw_enu_rad)
             self._sent_goal, self._sent_at = plan.goal_enu, now
+        self._progress.observe(now, state.position_enu, plan.goal_enu)
+        if self._progress.stalled(now):
+            self.feedback_message = stall_message(self._progress, now, plan.distance_m, state)
+            return Status.FAILURE
         self.feedback_message = f"{plan.distance_m:.0f} m to the standoff point of cue {cue.track_id}"
         return Status.RUNNING
 

@@ -107,7 +107,9 @@ class ModeOverridden(VehicleBehaviour):
 
 @register_behaviour
 class LinkLost(VehicleBehaviour):
-    """SUCCESS when no vehicle telemetry has arrived for ``max_silence_s`` of mission time.
+    """SUCCESS when no vehicle telemetry has arrived for ``max_silence_s`` of mission time, or the
+    telemetry that arrives cannot be trusted (``VehicleState.telemetry_fault``: a flood of absurd
+    values, a second sender under the vehicle's ids): a link that lies is a lost link.
 
     Keep it below the link's ``quiet_timeout_s`` (5 s), after which the runner stops the mission,
     and below ArduCopter's FS_GCS_TIMEOUT (5 s), so the mission asks for the RTL its autopilot is
@@ -128,6 +130,9 @@ class LinkLost(VehicleBehaviour):
 
     def update(self) -> Status:
         now, t_boot = self._now(), self.state.t_boot_s
+        if self.state.telemetry_fault:
+            self.feedback_message = self.state.telemetry_fault
+            return Status.SUCCESS
         if not math.isnan(t_boot) and t_boot != self._last_t_boot:
             self._last_t_boot, self._heard_at = t_boot, now
         if self._heard_at is None:

@@ -5,7 +5,8 @@ the camera looks from the vehicle's pose, re-plan when the step is reached, and 
 one GUIDED position target facing along the move. The belief starts from the cue on
 ``/target/cue``; the search state is published on ``/search/belief`` (a SearchSnapshot: belief,
 gain, set-point) for plots and logs. RUNNING until halted (vision acquired, the pilot, a timeout);
-FAILURE (and hover) without a cue, outside GUIDED, or when the belief cannot be built.
+FAILURE (and hover) without a cue, outside GUIDED or disarmed, when the belief cannot be built, or
+when the vehicle flies no closer to its set-points for ``stall_s`` (the autopilot refuses them).
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ from typing import Any
 import numpy as np
 import py_trees
 
-from behaviours.base import CommandingBehaviour, state_port
+from behaviours.base import CommandingBehaviour, stall_message, state_port
+from chaser_bt.control.progress import ClosingWatch
 from chaser_bt.cue import TargetCue
 from chaser_bt.search import (BeliefError, BeliefGrid, GaussianDynamics, GridSpec, MaxBeliefPlanner,
                               RecedingHorizonPlanner, SearchSession, SearchSnapshot, SensorModel, warm_up_planner)
@@ -42,6 +44,8 @@ class _BeliefSearch(CommandingBehaviour):
         "tilt_deg": input_port(float, "Camera mount tilt below forward (deg)", default=10.0, minimum=-90, maximum=90),
         "p_detect": input_port(float, "Detection probability inside the footprint", default=0.9, minimum=0, maximum=1),
         "replan_s": input_port(float, "Re-plan at least this often (s)", default=2.0, minimum=0),
+        "stall_s": input_port(float, "Fail after this long without flying 2 m towards the set-point (s; 0 = never)",
+                              default=30.0, minimum=0),
         "state": state_port(),
     }
     OUTPUT_PORTS = {"belief": output_port(SearchSnapshot, "Belief, belief gain and set-point", default_key="/search/belief")}
@@ -52,11 +56,15 @@ class _BeliefSearch(CommandingBehaviour):
 
     def initialise(self) -> None:
         self._session: SearchSession | None = None
+        self._progress = ClosingWatch(window_s=self.get_input("stall_s"))
 
     def update(self) -> Status:
         state, now = self.state, self._now()
         if state.mode != "GUIDED":
             self.feedback_message = f"vehicle is in {state.mode or 'an unknown mode'}, not GUIDED"
+            return Status.FAILURE
+        if not state.armed:
+            self.feedback_message = "vehicle disarmed"
             return Status.FAILURE
         try:
             if self._session is None:
@@ -68,6 +76,11 @@ class _BeliefSearch(CommandingBehaviour):
         if snap.replanned:
             self._link().goto_enu(snap.target_enu, snap.yaw_enu_rad)
         self._set_output("belief", snap)
+        self._progress.observe(now, state.position_enu, snap.target_enu)
+        if self._progress.stalled(now):
+            to_go = float(np.linalg.norm(np.asarray(snap.target_enu) - state.position_enu))
+            self.feedback_message = stall_message(self._progress, now, to_go, state)
+            return Status.FAILURE
         self.feedback_message = f"gain {snap.gain:.4f}, to {np.round(snap.target_enu).tolist()}"
         return Status.RUNNING
 

@@ -131,6 +131,12 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     p.add_argument("--radar-pose", type=arg.input_file, metavar="FILE.json",
                    help="the radar's pose: `chaser-bt calibrate --json` output (required with --radar)")
     p.add_argument("--radar-time-offset", type=float, default=0.0, metavar="S", help="radar time + S = mission time, s (default 0)")
+    p.add_argument("--radar-key", type=arg.input_file, metavar="FILE",
+                   help="believe only radar datagrams signed with this key (the ground stream's HMAC; a MAVLink "
+                        "signing key file)")
+    p.add_argument("--radar-from", action="append", type=arg.ip_address, metavar="IP",
+                   help="accept radar datagrams only from this address (repeat for several); without this or "
+                        "--radar-key anyone who reaches the port can cue the mission")
     p.add_argument("--camera", metavar="SOURCE", help="video file, stream URL or device index for the on-board camera (default: none)")
     p.add_argument("--camera-size", type=_size, metavar="WxH", help="resize camera frames to this size, px (default: as captured)")
     p.add_argument("--perception", choices=("thread", "inline"), default="thread",
@@ -409,7 +415,8 @@ def _sensor_options(args: argparse.Namespace):
     from chaser_bt.mission.flight_sensors import FlightSensorOptions
 
     return FlightSensorOptions(radar_listen=args.radar, radar_pose_file=args.radar_pose,
-                               radar_time_offset_s=args.radar_time_offset, camera=args.camera,
+                               radar_time_offset_s=args.radar_time_offset, radar_key_file=args.radar_key,
+                               radar_hosts=frozenset(args.radar_from) if args.radar_from else None, camera=args.camera,
                                camera_size=args.camera_size, telemetry=not args.no_telemetry,
                                perception=args.perception)
 

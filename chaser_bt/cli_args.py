@@ -105,6 +105,16 @@ def geodetic_point(text: str) -> tuple[float, float, float]:
     return lat, lon, alt
 
 
+def ip_address(text: str) -> str:
+    """An IPv4 or IPv6 address, as the socket reports a sender's (``192.0.2.7``)."""
+    import ipaddress
+
+    try:
+        return str(ipaddress.ip_address(text))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an IP address (such as 192.0.2.7)") from None
+
+
 def input_file(text: str) -> Path:
     """A file to read: it exists and is a file."""
     path = Path(text)

@@ -2,8 +2,10 @@
 
 Sim time is paced to wall time times ``speedup``. This loop is the one place in ``sitl/`` that
 reads wall time, through the injected ``monotonic`` callable; the simulator itself only counts
-steps. Between steps the loop sleeps in ``select()`` (short timeouts), pulling arriving bytes into
-the ports' buffers and accepting TCP clients; a step reads those buffers, exactly as in-process.
+steps. Between steps the loop sleeps in a :mod:`selectors` wait (short timeouts; no descriptor
+limit, unlike ``select()``), pulling arriving bytes into the ports' buffers and accepting TCP
+clients and UDP peers, each a link of its own; a step reads those buffers, exactly as in-process.
+Clients beyond ``max_clients`` (TCP) or peers beyond it (UDP) are refused and counted in the log.
 
 If the machine cannot keep up with ``speedup``, the sim runs as fast as it can and the pacing
 re-anchors (logged once) instead of trying to catch up in a burst.
@@ -16,7 +18,7 @@ only correctly signed messages, as an ArduCopter with a stored key does
 from __future__ import annotations
 
 import logging
-import select
+import selectors
 import signal
 import threading
 import time
@@ -24,7 +26,7 @@ from typing import Callable
 
 from chaser_bt.vehicle.signing import SigningConfig
 from sitl.simulator import Simulator
-from sitl.transports import LOOPBACK, TcpClientPort, TcpServer, UdpPort
+from sitl.transports import LOOPBACK, TcpClientPort, TcpServer, UdpPeer, UdpPort
 from sitl.world.scenario import Scenario
 
 __all__ = ["serve"]
@@ -47,6 +49,7 @@ def serve(
     monotonic: Callable[[], float] = time.monotonic,
     physics_hz: float | None = None,
     signing: SigningConfig | None = None,
+    max_clients: int = 32,
 ) -> None:
     """Run the simulator in real time (times ``speedup``) until ``stop`` is set, Ctrl-C or SIGTERM.
 
@@ -60,6 +63,7 @@ def serve(
         monotonic: the wall clock.
         physics_hz: physics rate (default: the simulator's).
         signing: MAVLink 2 signing key and link id (``SigningConfig.from_file(path)``); None: off.
+        max_clients: TCP clients, and UDP peers, served at once; more are refused.
     """
     if not speedup > 0.0:
         raise ValueError(f"speedup must be > 0, got {speedup}")
@@ -68,10 +72,9 @@ def serve(
     if signing is not None:
         # Clients stamp with the wall clock: so does the vehicle (ArduPilot: GPS time).
         sim.endpoint.enable_signing(signing, epoch_unix_s=time.time() - sim.time_s)
-    udp = UdpPort(udp_port, monotonic=monotonic)
-    tcp = TcpServer(tcp_port)
-    clients: list[TcpClientPort] = []
-    sim.attach(udp)
+    udp = UdpPort(udp_port, monotonic=monotonic, max_peers=max_clients)
+    tcp = TcpServer(tcp_port, max_clients=max_clients)
+    clients: list[TcpClientPort | UdpPeer] = []
     previous_sigterm = _on_sigterm(stop)
     try:
         urls = [f"tcp:{LOOPBACK}:{tcp.port}", f"udpout:{LOOPBACK}:{udp.port}"]
@@ -89,7 +92,8 @@ def serve(
         if previous_sigterm is not None:
             signal.signal(signal.SIGTERM, previous_sigterm)
         for client in clients:
-            client.close()
+            if isinstance(client, TcpClientPort):
+                client.close()
         tcp.close()
         udp.close()
         log.info("stopped at sim time %.2f s", sim.time_s)
@@ -106,38 +110,49 @@ def _loop(
     sim: Simulator,
     udp: UdpPort,
     tcp: TcpServer,
-    clients: list[TcpClientPort],
+    clients: list[TcpClientPort | UdpPeer],
     speedup: float,
     stop: threading.Event,
     monotonic: Callable[[], float],
 ) -> None:
     wall0, sim0 = monotonic(), sim.time_s
     warned = False
-    while not stop.is_set():
-        target = sim0 + (monotonic() - wall0) * speedup
-        steps = 0
-        while sim.time_s + 0.5 * sim.dt <= target and steps < _MAX_CATCHUP_STEPS:
-            sim.step()
-            steps += 1
-        if steps == _MAX_CATCHUP_STEPS:
-            if not warned:
-                log.warning("cannot keep up with %gx; running as fast as possible", speedup)
-                warned = True
-            wall0, sim0 = monotonic(), sim.time_s
-        for client in tcp.accept():
-            log.info("tcp client %s:%d connected", *client.addr)
-            clients.append(client)
-            sim.attach(client)
-        for client in [c for c in clients if c.closed]:
-            log.info("tcp client %s:%d left", *client.addr)
-            clients.remove(client)
-            sim.detach(client)
-        wait = wall0 + (sim.time_s + sim.dt - sim0) / speedup - monotonic()
-        readers = [udp, tcp, *clients]
-        writers = [c for c in clients if c.tx_pending]
-        readable, writable, _ = select.select(readers, writers, [], min(max(wait, 0.0), _MAX_WAIT_S))
-        for port in readable:
-            if port is not tcp:
-                port.pull()
-        for client in writable:
-            client.flush()
+    with selectors.DefaultSelector() as selector:
+        selector.register(udp, selectors.EVENT_READ)
+        selector.register(tcp, selectors.EVENT_READ)
+        while not stop.is_set():
+            target = sim0 + (monotonic() - wall0) * speedup
+            steps = 0
+            while sim.time_s + 0.5 * sim.dt <= target and steps < _MAX_CATCHUP_STEPS:
+                sim.step()
+                steps += 1
+            if steps == _MAX_CATCHUP_STEPS:
+                if not warned:
+                    log.warning("cannot keep up with %gx; running as fast as possible", speedup)
+                    warned = True
+                wall0, sim0 = monotonic(), sim.time_s
+            tcp_open = sum(isinstance(c, TcpClientPort) for c in clients)
+            for client in [*tcp.accept(tcp_open), *udp.accept()]:
+                log.info("%s client %s:%d connected", "tcp" if isinstance(client, TcpClientPort) else "udp", *client.addr)
+                clients.append(client)
+                sim.attach(client)
+                if isinstance(client, TcpClientPort):
+                    selector.register(client, selectors.EVENT_READ)
+            for client in [c for c in clients if c.closed]:
+                log.info("client %s:%d left", *client.addr)
+                clients.remove(client)
+                sim.detach(client)
+                if isinstance(client, TcpClientPort):
+                    selector.unregister(client)
+            for client in clients:
+                if isinstance(client, TcpClientPort):
+                    events = selectors.EVENT_READ | (selectors.EVENT_WRITE if client.tx_pending else 0)
+                    if selector.get_key(client).events != events:
+                        selector.modify(client, events)
+            wait = wall0 + (sim.time_s + sim.dt - sim0) / speedup - monotonic()
+            for key, events in selector.select(min(max(wait, 0.0), _MAX_WAIT_S)):
+                port = key.fileobj
+                if port is udp or isinstance(port, TcpClientPort) and events & selectors.EVENT_READ:
+                    port.pull()
+                if isinstance(port, TcpClientPort) and events & selectors.EVENT_WRITE:
+                    port.flush()

@@ -3,6 +3,7 @@ stops within 5 s, keeping every finished run."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -98,25 +99,38 @@ def test_campaign_stops_within_5_s_of_ctrl_c_with_workers(tmp_path):
     assert 0 < len(kept) < 60 and f"{len(kept)} finished run(s) kept" in err
 
 
-def _sigterm_mid_flight(speedup: str, port: int, run_args: list[str], started: str, timeout_s: float,
-                        delay_s: float) -> tuple[subprocess.Popen, str, str]:
-    """Fly the patrol with ``run`` against ``chaser-bt sitl``, SIGTERM ``run`` ``delay_s`` after the line
-    ``started``; the finished ``run`` process and its output."""
+@contextlib.contextmanager
+def _sitl(speedup: str, port: int):
+    """``chaser-bt sitl`` flying the patrol scenario at ``speedup``, on TCP ``port``, for the with-block."""
     sim = _cli("sitl", "--scenario", SCENARIO, "--speedup", speedup, "--tcp-port", str(port), "--udp-port", str(port - 210))
     try:
         _wait_for_line(sim.stdout, "connect with", 60)
-        run = _cli("run", PATROL, "--connect", f"tcp:127.0.0.1:{port}", *run_args)
-        try:
-            _wait_for_line(run.stdout, started, timeout_s)
-            time.sleep(delay_s)
-            run.send_signal(signal.SIGTERM)
-            out, err = run.communicate(timeout=60)
-        finally:
-            run.kill()
+        yield
     finally:
         sim.send_signal(signal.SIGTERM)
         sim.communicate(timeout=30)
+
+
+def _sigterm_run(port: int, run_args: list[str], started: str, timeout_s: float,
+                 delay_s: float) -> tuple[subprocess.Popen, str, str]:
+    """Fly the patrol with ``run``, SIGTERM it ``delay_s`` after the line ``started``; the finished
+    ``run`` process and its output."""
+    run = _cli("run", PATROL, "--connect", f"tcp:127.0.0.1:{port}", *run_args)
+    try:
+        _wait_for_line(run.stdout, started, timeout_s)
+        time.sleep(delay_s)
+        run.send_signal(signal.SIGTERM)
+        out, err = run.communicate(timeout=60)
+    finally:
+        run.kill()
     return run, out, err
+
+
+def _sigterm_mid_flight(speedup: str, port: int, run_args: list[str], started: str, timeout_s: float,
+                        delay_s: float) -> tuple[subprocess.Popen, str, str]:
+    """:func:`_sigterm_run` against a simulator of its own."""
+    with _sitl(speedup, port):
+        return _sigterm_run(port, run_args, started, timeout_s, delay_s)
 
 
 @pytest.mark.slow
@@ -140,3 +154,21 @@ def test_run_on_sigterm_mid_leg_confirms_the_hold_at_any_speed(speedup):
     assert run.returncode == 130, err
     last = out.strip().splitlines()[-1]
     assert last.startswith("interrupted: ") and "hold confirmed: GUIDED at" in last, last
+
+
+@pytest.mark.slow
+def test_run_again_on_the_aircraft_an_interrupted_run_left_flying_joins_it_and_completes():
+    """Rejoin: a second ``run`` on the vehicle the first left holding mid-leg (or already under its GCS
+    failsafe's RTL) takes home from the vehicle, flies the whole patrol and lands: exit 0, no traceback."""
+    port, speedup = 15765, "4"
+    with _sitl(speedup, port):
+        first, out, err = _sigterm_run(port, ["--show-ticks"], "ArmAndTakeoff RUNNING->SUCCESS", 200, 1.0)
+        assert first.returncode == 130, err
+        again = _cli("run", PATROL, "--connect", f"tcp:127.0.0.1:{port}", "--show-ticks")
+        try:
+            out, err = again.communicate(timeout=300)
+        finally:
+            again.kill()
+    assert again.returncode == 0 and "Traceback" not in err, err
+    assert "ArmAndTakeoff RUNNING->SUCCESS" in out
+    assert out.strip().splitlines()[-1].startswith("completed: "), out[-2000:]

@@ -12,7 +12,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-__all__ = ["ProgressWatch"]
+import numpy as np
+
+__all__ = ["ClosingWatch", "ProgressWatch"]
 
 
 @dataclass
@@ -37,3 +39,42 @@ class ProgressWatch:
     def since_s(self, t: float) -> float:
         """Seconds since the last progress (0 before the first observation)."""
         return 0.0 if self.improved_at_s is None else t - self.improved_at_s
+
+
+@dataclass
+class ClosingWatch:
+    """A :class:`ProgressWatch` for a goal that moves (a cue, a search set-point): progress is the
+    distance flown *towards* wherever the goal is now, so a chase that keeps its range to a fleeing
+    target still counts as progress while a vehicle the autopilot holds in place does not. Within
+    ``near_m`` of the goal the vehicle is where it was sent: that is progress too.
+    """
+
+    window_s: float = 30.0
+    min_progress_m: float = 2.0
+    near_m: float = 5.0
+    closed_m: float = field(default=0.0, init=False)
+    _watch: ProgressWatch = field(init=False)
+    _last: np.ndarray | None = field(default=None, init=False)
+
+    def __post_init__(self) -> None:
+        self._watch = ProgressWatch(self.window_s, self.min_progress_m)
+
+    def observe(self, t: float, position: np.ndarray, goal: np.ndarray) -> None:
+        position, goal = np.asarray(position, dtype=float), np.asarray(goal, dtype=float)
+        if not (np.all(np.isfinite(position)) and np.all(np.isfinite(goal))):
+            return
+        if self._last is not None:
+            to_goal = goal - self._last
+            norm = float(np.linalg.norm(to_goal))
+            if norm > 1e-6:
+                self.closed_m += float(np.dot(position - self._last, to_goal) / norm)
+        self._last = position
+        if float(np.linalg.norm(goal - position)) <= self.near_m:
+            self._watch = ProgressWatch(self.window_s, self.min_progress_m)  # arrived: the clock starts again
+        self._watch.observe(t, -self.closed_m)
+
+    def stalled(self, t: float) -> bool:
+        return self._watch.stalled(t)
+
+    def since_s(self, t: float) -> float:
+        return self._watch.since_s(t)

@@ -93,14 +93,18 @@ def parse_datagram(data: bytes) -> dict[str, Any] | VideoChunk:
     """A JSON message as a dict, or a :class:`VideoChunk`.
 
     Raises:
-        ValueError: neither (garbage, a truncated chunk, another version).
+        ValueError: neither (garbage, a truncated chunk, another version, nesting too deep for
+            Python's JSON reader): the only error, whatever ``data`` holds.
     """
+    if not isinstance(data, (bytes, bytearray, memoryview)):
+        raise ValueError(f"a datagram is bytes, not {type(data).__name__}")
+    data = bytes(data)
     if data[:4] == VIDEO_MAGIC:
         return parse_chunk(data)
     try:
         msg = json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise ValueError(f"not a ground-stream datagram: {e}") from e
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
+        raise ValueError(f"not a ground-stream datagram: {type(e).__name__}") from None
     if not isinstance(msg, dict) or msg.get("v") != VERSION or "type" not in msg:
         raise ValueError(f"not a version {VERSION} ground-stream message")
     return msg
@@ -186,28 +190,41 @@ def parse_chunk(data: bytes) -> VideoChunk:
         raise ValueError(f"not a version {VERSION} video chunk")
     if not index < count:
         raise ValueError(f"video chunk {index} of {count}")
+    if not math.isfinite(t):
+        raise ValueError(f"video chunk time {t}")
     return VideoChunk(fid, index, count, t, bytes(data[VIDEO_HEADER.size:]))
 
 
 class FrameAssembler:
-    """Reassembles video chunks into JPEG frames; keeps at most ``keep`` incomplete frames."""
+    """Reassembles video chunks into JPEG frames; keeps at most ``keep`` incomplete frames and at most
+    ``max_frame_bytes`` of any one. A frame whose chunks disagree on their count, or that grows past
+    the limit, is dropped (``dropped`` counts every frame given up)."""
 
-    def __init__(self, keep: int = 4) -> None:
+    def __init__(self, keep: int = 4, max_frame_bytes: int = 16 << 20) -> None:
         self.keep = keep
-        self._parts: dict[int, dict[int, bytes]] = {}
-        self.dropped = 0  # incomplete frames given up
+        self.max_frame_bytes = max_frame_bytes
+        self._parts: dict[int, tuple[int, dict[int, bytes]]] = {}  # frame id -> (chunk count, chunks)
+        self.dropped = 0  # incomplete or inconsistent frames given up
 
     def add(self, chunk: VideoChunk) -> tuple[int, float, bytes] | None:
         """Take a chunk; (frame id, t, JPEG bytes) when it completes its frame."""
-        parts = self._parts.setdefault(chunk.frame_id, {})
+        count, parts = self._parts.setdefault(chunk.frame_id, (chunk.count, {}))
+        if chunk.count != count:
+            self._drop(chunk.frame_id)
+            return None
         parts[chunk.index] = chunk.payload
-        if len(parts) == chunk.count:
+        if len(parts) == count:
             del self._parts[chunk.frame_id]
-            return chunk.frame_id, chunk.t, b"".join(parts[k] for k in range(chunk.count))
+            return chunk.frame_id, chunk.t, b"".join(parts[k] for k in range(count))
+        if sum(len(p) for p in parts.values()) > self.max_frame_bytes:
+            self._drop(chunk.frame_id)
         while len(self._parts) > self.keep:
-            del self._parts[min(self._parts)]
-            self.dropped += 1
+            self._drop(min(self._parts))
         return None
+
+    def _drop(self, frame_id: int) -> None:
+        del self._parts[frame_id]
+        self.dropped += 1
 
 
 def draw_boxes(image: np.ndarray, boxes: Sequence[Box]) -> np.ndarray:

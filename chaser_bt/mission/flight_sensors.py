@@ -20,11 +20,13 @@ from pathlib import Path
 from typing import Any
 
 from chaser_bt.geo import GeoPoint
+from chaser_bt.ground.auth import StreamVerifier
 from chaser_bt.mission.resources import missing_resources
 from chaser_bt.radar.feed import RadarFeed
 from chaser_bt.radar.geometry import RadarPose
-from chaser_bt.radar.stream import UdpDatagramSource
+from chaser_bt.radar.stream import RadarStreamReader, UdpDatagramSource
 from chaser_bt.target_telemetry import TargetTelemetry
+from chaser_bt.vehicle.signing import SigningKeyError, load_key
 
 __all__ = ["FlightSensorOptions", "FlightSensorError", "PERCEPTION_MODES", "RESOURCE_FLAGS", "build_flight_sensors",
            "check_sensors", "close_flight_sensors", "load_radar_pose"]
@@ -50,6 +52,8 @@ class FlightSensorOptions:
     radar_listen: str | None = None
     radar_pose_file: Path | None = None
     radar_time_offset_s: float = 0.0
+    radar_key_file: Path | None = None  # the radar's datagrams are believed only signed with this key
+    radar_hosts: frozenset[str] | None = None  # ... and only from these addresses
     camera: str | None = None
     camera_size: tuple[int, int] | None = None
     telemetry: bool = True
@@ -79,6 +83,12 @@ def check_sensors(tree: Any, options: FlightSensorOptions) -> None:
     missing = missing_resources(tree.root, given, how=RESOURCE_FLAGS, what=f"tree {tree.name}")
     if missing is not None:
         raise FlightSensorError(str(missing))
+    if options.radar_listen is not None:  # every radar option read now, not after the vehicle answered
+        if options.radar_pose_file is None:
+            raise FlightSensorError("--radar needs --radar-pose FILE (the output of `chaser-bt calibrate --json`)")
+        _host_port(options.radar_listen)
+        load_radar_pose(options.radar_pose_file)
+        _radar_verifier(options.radar_key_file)
 
 
 def load_radar_pose(path: Path) -> tuple[GeoPoint, tuple[float, float, float]]:
@@ -89,6 +99,8 @@ def load_radar_pose(path: Path) -> tuple[GeoPoint, tuple[float, float, float]]:
         raise FlightSensorError(f"{path}: {exc.strerror or exc}") from None
     except json.JSONDecodeError as exc:
         raise FlightSensorError(f"{path}:{exc.lineno}: not JSON ({exc.msg})") from None
+    except UnicodeDecodeError:
+        raise FlightSensorError(f"{path}: not a text file (expected the JSON of `chaser-bt calibrate --json`)") from None
     if not isinstance(data, dict):
         raise FlightSensorError(f"{path}: expected a JSON object with {', '.join(_POSE_FIELDS)}")
     values = {}
@@ -123,12 +135,26 @@ def build_flight_sensors(link: Any, clock: Any, options: FlightSensorOptions) ->
         point, (yaw, pitch, roll) = load_radar_pose(options.radar_pose_file)
         pose = RadarPose.from_geodetic(link.frame, point, yaw, pitch, roll)
         host, port = _host_port(options.radar_listen)
-        resources["radar"] = RadarFeed(UdpDatagramSource(host, port), pose, time_offset_s=options.radar_time_offset_s)
+        reader = RadarStreamReader(verifier=_radar_verifier(options.radar_key_file))
+        if options.radar_key_file is None and options.radar_hosts is None:
+            log.warning("the radar feed on %s is open to anyone who can reach it: anyone can cue the mission "
+                        "(--radar-key FILE signs it, --radar-from HOST pins its source)", options.radar_listen)
+        source = UdpDatagramSource(host, port, allowed_hosts=options.radar_hosts, counts=reader.counts)
+        resources["radar"] = RadarFeed(source, pose, time_offset_s=options.radar_time_offset_s, reader=reader)
     if options.camera is not None:
         resources["camera"] = _camera(options, clock)
     if options.telemetry:
         resources["target_telemetry"] = TargetTelemetry.attach(link, clock.now)
     return resources
+
+
+def _radar_verifier(key_file: Path | None) -> StreamVerifier | None:
+    if key_file is None:
+        return None
+    try:
+        return StreamVerifier(load_key(key_file))
+    except SigningKeyError as exc:
+        raise FlightSensorError(f"--radar-key: {exc}") from None
 
 
 def close_flight_sensors(resources: dict[str, Any]) -> None:

@@ -93,6 +93,7 @@ class FlightWitness:
     authority: ModeAuthority | None = None
     texts: deque[tuple[float, str]] = field(default_factory=lambda: deque(maxlen=100))  # the autopilot's failsafe-like texts
     crash: str = ""  # the first disarm in the air, in words
+    untrusted: str = ""  # the first telemetry fault seen (a flood of absurd values, a second sender)
     _clock: Callable[[], float] | None = field(default=None, repr=False)
     _vehicle_sysid: Callable[[], int | None] = field(default=lambda: None, repr=False)
 
@@ -103,6 +104,7 @@ class FlightWitness:
         return witness
 
     def observe(self, t: float, state: VehicleState) -> None:
+        self.untrusted = self.untrusted or state.telemetry_fault
         if self.touchdown.observe(t, state) is Touchdown.CRASHED and not self.crash:
             self.crash = self.touchdown.detail
 
@@ -132,10 +134,14 @@ class FlightWitness:
 def judge(status: str, message: str, witness: FlightWitness, phase: str | None = None, *, link_lost: bool = False) -> Verdict:
     """The outcome of a run whose runner ended in ``status`` ("success", "failure", "interrupted",
     "error") with ``message``; ``phase`` is the tree's last ``/mission/phase``; ``link_lost`` says the
-    link went quiet. Precedence: a crash, an interruption, the link, an error, someone else's mode,
-    the tree's guards, the tree's own status."""
+    link went quiet. Precedence: telemetry that cannot be trusted (then nothing it said is, a
+    "crash" included), a crash, an interruption, the link, an error, someone else's mode, the
+    tree's guards, the tree's own status."""
     notes = tuple(dict.fromkeys(text for _, text in witness.texts))
     phase = phase if isinstance(phase, str) else ""
+    if witness.untrusted:
+        return Verdict(Outcome.ERROR, f"the vehicle's telemetry cannot be trusted ({witness.untrusted}); the tree "
+                                      f"ended with: {message}", notes)
     if witness.crash:
         return Verdict(Outcome.CRASHED, witness.crash, notes)
     if status == "interrupted":

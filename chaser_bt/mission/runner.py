@@ -33,7 +33,7 @@ import numpy as np
 import py_trees
 
 from chaser_bt.clock import Clock
-from chaser_bt.mission.outcome import PHASE_KEY, FlightWitness, Verdict, judge
+from chaser_bt.mission.outcome import PHASE_KEY, FlightWitness, Outcome, Verdict, judge
 from chaser_bt.mission.resources import missing_resources
 from chaser_bt.tree import MissionTree, NodeKind
 from chaser_bt.vehicle import VehicleError, VehicleLink, VehicleQuiet
@@ -280,10 +280,24 @@ class MissionRunner:
         in the air, :meth:`confirm_hold` then watches the hold take effect (``RunResult.hand_back``).
         """
         result = self._run(should_stop, idle)
-        if self.link.state.airborne:
+        if self.ticks and result.status is not RunStatus.INTERRUPTED and result.verdict.outcome is not Outcome.LINK_LOST:
+            self._listen(1.0, idle)  # a second more of telemetry: a lie (a clone's "disarmed") shows as one
+            if self.link.state.telemetry_fault:
+                result.verdict = self.verdict(result.status, result.message)
+        if self.link.state.airborne or self.witness.untrusted:
             result.hand_back = self.confirm_hold(idle=idle)
             log.info("hand-back: %s", result.hand_back)
         return result
+
+    def _listen(self, seconds: float, idle: Callable[[], None]) -> None:
+        """Poll the link for ``seconds`` of its time (at most twice that of wall time); quiet ends it."""
+        start, wall_start = self.link.now(), time.monotonic()
+        try:
+            while self.link.now() - start < seconds and time.monotonic() - wall_start < 2 * seconds:
+                idle()
+                self.link.poll()
+        except VehicleError:
+            return
 
     def confirm_hold(self, *, timeout_s: float = 10.0, idle: Callable[[], None] = lambda: time.sleep(0.002)) -> str:
         """After :meth:`stop`: poll until the aircraft shows it is held, re-sending the hold each second.
@@ -296,6 +310,11 @@ class MissionRunner:
         link, wall_start = self.link, time.monotonic()
         start = last_sent = link.now()
         try:
+            if link.state.telemetry_fault:  # nothing it says can confirm anything: stop it, and say so
+                for _ in range(3):
+                    link.hover()
+                    self._listen(1.0, idle)
+                return f"hold sent (zero velocity), NOT confirmed: {link.state.telemetry_fault}"
             while True:
                 s = link.state
                 speed = float(np.hypot(*s.velocity_enu[:2]))
@@ -358,6 +377,7 @@ class MissionRunner:
             phase = self._blackboard.get(PHASE_KEY)
         except KeyError:  # the tree names no phase
             phase = None
+        self.witness.untrusted = self.witness.untrusted or self.link.state.telemetry_fault
         return judge(status.value, message, self.witness, phase, link_lost=link_lost)
 
     def _result(self, status: RunStatus, message: str, *, link_lost: bool = False) -> RunResult:

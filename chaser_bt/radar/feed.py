@@ -102,18 +102,19 @@ class RadarFeed:
         correlator: a :class:`TrackCorrelator` or its name (``"gated"``, ``"alg1"``).
         time_offset_s: mission time = radar time + offset.
         track_timeout_s: a track not reported for this long leaves the picture.
+        reader: checks the datagrams (its envelope, its verifier); default: unsigned, default envelope.
     """
 
     def __init__(self, source: DatagramSource, pose: RadarPose, *, noise: RadarNoise | None = None,
                  correlator: TrackCorrelator | str = "gated", time_offset_s: float = 0.0,
-                 track_timeout_s: float = 1.0) -> None:
+                 track_timeout_s: float = 1.0, reader: RadarStreamReader | None = None) -> None:
         self.source = source
         self.pose = pose
         self.noise = noise or RadarNoise()
         self.correlator = make_correlator(correlator) if isinstance(correlator, str) else correlator
         self.time_offset_s = time_offset_s
         self.track_timeout_s = track_timeout_s
-        self.reader = RadarStreamReader()
+        self.reader = reader or RadarStreamReader()
         self._tracks: dict[int, RadarTrack] = {}
         self._last_scan_t: float | None = None
         self._picture: RadarPicture | None = None

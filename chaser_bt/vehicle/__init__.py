@@ -8,6 +8,7 @@ import os
 os.environ["MAVLINK20"] = "1"
 
 from chaser_bt.vehicle.commands import Command, CommandStatus, Setpoint  # noqa: E402
+from chaser_bt.vehicle.envelope import CommandEnvelope, UnsafeCommand  # noqa: E402
 from chaser_bt.vehicle.errors import (  # noqa: E402
     CommandRejected,
     LinkTimeout,
@@ -22,6 +23,7 @@ from chaser_bt.vehicle.state import LandedState, VehicleState  # noqa: E402
 __all__ = [
     "COPTER_MODES",
     "Command",
+    "CommandEnvelope",
     "CommandRejected",
     "CommandStatus",
     "DEFAULT_STREAM_RATES_HZ",
@@ -31,6 +33,7 @@ __all__ = [
     "LinkTimeout",
     "PipeEnd",
     "Setpoint",
+    "UnsafeCommand",
     "VehicleError",
     "VehicleLink",
     "VehicleQuiet",

@@ -213,6 +213,10 @@ class CommandTracker:
                     f"accepted, but telemetry did not show it within {self.confirm_timeout_s:g} s", now,
                 )
             return
+        if p.confirm is not None and p.confirm():  # the ack was lost, but telemetry shows the effect
+            log.info("%s: no answer, but telemetry shows it done", cmd.name)
+            self._finish(p, CommandStatus.ACCEPTED, "", now)
+            return
         if now < p.deadline:
             return
         if cmd.attempts <= self.retries:

@@ -22,7 +22,16 @@ or a real aircraft; only the connection string changes (DESIGN §5). Its rules:
   are dropped and counted in :attr:`VehicleLink.signing`. Other systems' messages (an intruder's
   own telemetry) are not ours to authenticate; they reach listeners as before and never the state.
 - A command counts as accepted only when ArduCopter acked it *and*, where telemetry can show it,
-  telemetry shows it (mode in HEARTBEAT.custom_mode, armed flag): ArduPilot acks first.
+  telemetry shows it (mode in HEARTBEAT.custom_mode, armed flag): ArduPilot acks first. Telemetry
+  that shows it without an ack (the ack was lost) counts too.
+- Telemetry is checked before it is believed (:mod:`chaser_bt.vehicle.telemetry_check`): what no
+  aircraft reports is dropped and counted on ``state.telemetry_rejected``; a flood of drops, or two
+  senders interleaving under the vehicle's ids (:mod:`chaser_bt.vehicle.source_watch`), sets
+  ``state.telemetry_fault``. A vehicle whose time stops while its messages keep coming, or whose
+  telemetry stays untrustworthy, is as good as quiet: :class:`VehicleQuiet` after ``quiet_timeout_s``.
+- Every set-point is checked against the :class:`~chaser_bt.vehicle.envelope.CommandEnvelope`
+  before it is sent; one outside raises :class:`~chaser_bt.vehicle.envelope.UnsafeCommand` and
+  nothing leaves. Only the hold of :meth:`~VehicleLink.hover` (where the aircraft is) is exempt.
 - Two public hooks observe it: :meth:`~VehicleLink.add_listener` sees decoded messages both ways;
   :meth:`~VehicleLink.add_wire_tap` sees the raw bytes read from the connection and the link time
   of every :meth:`~VehicleLink.poll`, with :meth:`~VehicleLink.now` and
@@ -47,10 +56,13 @@ from chaser_bt.geo import GeoPoint, LocalFrame, enu_to_ned, enu_yaw_to_heading, 
 from chaser_bt.vehicle.cadence import Cadence
 from chaser_bt.vehicle.commands import Command, CommandTracker, Setpoint
 from chaser_bt.vehicle.connection import PipeConnection, mavutil, open_connection
+from chaser_bt.vehicle.envelope import CommandEnvelope, UnsafeCommand
 from chaser_bt.vehicle.errors import CommandRejected, LinkTimeout, VehicleError, VehicleQuiet, VehicleUnreachable
 from chaser_bt.vehicle.pipe import PipeEnd
 from chaser_bt.vehicle.signing import SigningConfig, SigningGate, signing_timestamp
+from chaser_bt.vehicle.source_watch import SequenceWatch
 from chaser_bt.vehicle.state import VehicleState, statustext_str, update_state
+from chaser_bt.vehicle.telemetry_check import TelemetryGate, TelemetryLimits
 
 __all__ = ["LinkConfig", "LinkCounters", "VehicleLink", "DEFAULT_STREAM_RATES_HZ", "COPTER_MODES"]
 
@@ -120,6 +132,8 @@ class LinkConfig:
     stream_rates_hz: Mapping[str, float] = field(default_factory=lambda: DEFAULT_STREAM_RATES_HZ)
     origin: GeoPoint | None = None  # ENU origin; None: the vehicle's home
     signing: SigningConfig | None = None  # MAVLink 2 signing key and link id; None: unsigned link
+    envelope: CommandEnvelope = field(default_factory=CommandEnvelope)  # where set-points may send the aircraft
+    telemetry_limits: TelemetryLimits = field(default_factory=TelemetryLimits)  # what telemetry is believed
     # Heartbeats and RC-override resends also keep to the vehicle's time (its time_boot_ms), so a
     # simulator at speed-up sees them at their rate in its own time (chaser_bt.vehicle.cadence).
     timers_on_vehicle_time: bool = False
@@ -174,6 +188,11 @@ class VehicleLink:
         self.last_setpoint: Setpoint | None = None
         self.target_sysid: int | None = config.target_sysid
         self.target_compid: int | None = None
+        self._telemetry = TelemetryGate(config.telemetry_limits)
+        self._sequence = SequenceWatch()
+        self._t_boot_seen = (math.nan, 0.0)  # (the vehicle's latest time, link time it last moved)
+        self._timed_rx_at = -math.inf  # link time of the latest message carrying the vehicle's time
+        self._fault_since: float | None = None  # link time state.telemetry_fault was set
         self._commands = CommandTracker(
             ack_timeout_s=config.ack_timeout_s, retries=config.retries, confirm_timeout_s=config.confirm_timeout_s,
         )
@@ -385,6 +404,7 @@ class VehicleLink:
         """GUIDED take-off to ``alt_rel_m`` above home (ArduCopter: armed, GUIDED, landed)."""
         if not alt_rel_m > 0:
             raise ValueError(f"takeoff altitude {alt_rel_m} m: expected > 0 (above home)")
+        self.config.envelope.check_altitude(alt_rel_m)
         return self._submit(f"takeoff({alt_rel_m:g} m)", mavlink.MAV_CMD_NAV_TAKEOFF, (0, 0, 0, 0, 0, 0, alt_rel_m))
 
     def rtl(self) -> Command:
@@ -399,6 +419,7 @@ class VehicleLink:
         """Horizontal speed for GUIDED legs (MAV_CMD_DO_CHANGE_SPEED, ground speed; throttle unchanged)."""
         if not speed_mps > 0:
             raise ValueError(f"speed {speed_mps} m/s: expected > 0")
+        self.config.envelope.check_speed(speed_mps)
         return self._submit(f"set_speed({speed_mps:g} m/s)", mavlink.MAV_CMD_DO_CHANGE_SPEED, (1, speed_mps, -1))
 
     def set_param(self, name: str, value: float) -> Command:
@@ -431,7 +452,15 @@ class VehicleLink:
 
     # ----------------------------------------------------------------------------- set-points
     def goto_enu(self, pos_enu: Sequence[float] | np.ndarray, yaw_enu_rad: float | None = None) -> None:
-        """GUIDED: fly to ``pos_enu`` in :attr:`frame` and hold there (no ack; holds until replaced)."""
+        """GUIDED: fly to ``pos_enu`` in :attr:`frame` and hold there (no ack; holds until replaced).
+
+        Raises:
+            UnsafeCommand: the target is outside the command envelope (nothing was sent).
+        """
+        self._check_target_enu(pos_enu)
+        self._goto_enu(pos_enu, yaw_enu_rad)
+
+    def _goto_enu(self, pos_enu: Sequence[float] | np.ndarray, yaw_enu_rad: float | None) -> None:
         if self.frame is None:
             raise VehicleError("no ENU frame yet: the vehicle's HOME_POSITION has not arrived (or set LinkConfig.origin)")
         p = self.frame.to_geodetic(pos_enu)
@@ -441,7 +470,13 @@ class VehicleLink:
             self._send_position(p.lat_deg, p.lon_deg, p.alt_m, yaw_enu_rad, relative=False)
 
     def goto_global(self, point: GeoPoint, alt_rel_m: float, yaw_enu_rad: float | None = None) -> None:
-        """GUIDED: fly to ``point``'s latitude/longitude at ``alt_rel_m`` above home, and hold."""
+        """GUIDED: fly to ``point``'s latitude/longitude at ``alt_rel_m`` above home, and hold (checked
+        against the command envelope like :meth:`goto_enu`)."""
+        if self.frame is None:
+            self.config.envelope.check_altitude(alt_rel_m)
+        else:
+            east, north, _ = self.frame.point_to_enu(point) - self._home_enu()
+            self.config.envelope.check_position(float(east), float(north), alt_rel_m)
         self._send_position(point.lat_deg, point.lon_deg, alt_rel_m, yaw_enu_rad, relative=True)
 
     def velocity_enu(self, vel_enu: Sequence[float] | np.ndarray, yaw_rate: float | None = None,
@@ -451,6 +486,7 @@ class VehicleLink:
         or it stops."""
         if yaw_rate is not None and yaw_enu_rad is not None:
             raise ValueError("velocity_enu: give a yaw rate or a heading, not both")
+        self.config.envelope.check_velocity(vel_enu, yaw_rate)
         self._require_vehicle()
         vn, ve, vd = enu_to_ned(vel_enu)
         mask = _VELOCITY_ONLY | (mavlink.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE if yaw_rate is None else 0)
@@ -499,9 +535,12 @@ class VehicleLink:
         s = self.state
         if not s.armed:
             return False
+        if s.telemetry_fault:  # where it "is" cannot be believed: stop it where it really is
+            self.velocity_enu((0.0, 0.0, 0.0))
+            return True
         if s.mode == "GUIDED":
             if self.frame is not None and np.all(np.isfinite(s.position_enu)):
-                self.goto_enu(s.position_enu, s.yaw_enu_rad if math.isfinite(s.yaw_enu_rad) else None)
+                self._goto_enu(s.position_enu, s.yaw_enu_rad if math.isfinite(s.yaw_enu_rad) else None)
             else:
                 self.velocity_enu((0.0, 0.0, 0.0))
             return True
@@ -587,6 +626,13 @@ class VehicleLink:
             return 1
         if comp != self.target_compid:
             return 1
+        self._sequence.observe(msg.get_seq())
+        admitted = self._telemetry.admit(msg, self.state, now)
+        self._set_telemetry_fault(self._telemetry.fault or self._sequence.fault, now)
+        if not admitted:
+            return 0  # counted on state.telemetry_rejected; not heard, not believed
+        if getattr(msg, "time_boot_ms", None) is not None:
+            self._timed_rx_at = now
         self._last_rx_t, self._last_rx_type = now, mtype
         self._stream_rx[mtype] = now
         if mtype == "COMMAND_ACK":
@@ -598,6 +644,8 @@ class VehicleLink:
         else:
             previous_mode = self.state.mode
             update_state(self.state, msg, self.frame)
+            if self.state.t_boot_s != self._t_boot_seen[0]:
+                self._t_boot_seen = (self.state.t_boot_s, now)
             if mtype == "HEARTBEAT" and self.state.mode != previous_mode:
                 self._on_mode_change(previous_mode)
             elif mtype == "HOME_POSITION" and self.frame is None:
@@ -662,9 +710,23 @@ class VehicleLink:
                                     getattr(mavlink, f"MAVLINK_MSG_ID_{name}"), interval_us)
         self._streams_checked_at = now
 
+    def _set_telemetry_fault(self, fault: str, now: float) -> None:
+        if fault and self._fault_since is None:
+            self._fault_since = now
+        elif not fault:
+            self._fault_since = None
+        self.state.telemetry_fault = fault
+
     def _check_quiet(self, now: float) -> None:
-        silent = now - self._last_rx_t
-        if silent <= self.config.quiet_timeout_s:
+        silent, timeout = now - self._last_rx_t, self.config.quiet_timeout_s
+        if silent <= timeout:
+            t_boot, moved_at = self._t_boot_seen
+            if now - self._timed_rx_at <= 1.0 and now - moved_at > timeout:
+                raise VehicleQuiet(f"vehicle {self.target_sysid}'s time frozen at {t_boot:.1f} s for "
+                                   f"{now - moved_at:.1f} s while its messages keep coming")
+            if self._fault_since is not None and now - self._fault_since > timeout:
+                raise VehicleQuiet(f"vehicle {self.target_sysid}: {self.state.telemetry_fault}, for "
+                                   f"{now - self._fault_since:.1f} s")
             return
         if not self._last_rx_type:
             raise VehicleQuiet(f"no MAVLink from an autopilot in the {silent:.1f} s since the link opened "
@@ -694,6 +756,19 @@ class VehicleLink:
     def _send_command_long(self, command_id: int, *params: float) -> None:
         p = (tuple(float(x) for x in params) + (0.0,) * 7)[:7]
         self.conn.mav.command_long_send(self.target_sysid, self.target_compid, command_id, 0, *p)
+
+    def _home_enu(self) -> np.ndarray:
+        """Home in :attr:`frame` (the frame's origin until HOME_POSITION arrives)."""
+        if self.frame is None or self.state.home is None:
+            return np.zeros(3)
+        return self.frame.point_to_enu(self.state.home)
+
+    def _check_target_enu(self, pos_enu: Sequence[float] | np.ndarray) -> None:
+        target = np.asarray(pos_enu, dtype=float)
+        if target.shape != (3,) or not np.all(np.isfinite(target)):
+            raise UnsafeCommand(f"position target not finite: {list(np.ravel(target))}")
+        east, north, up = target - self._home_enu()
+        self.config.envelope.check_position(float(east), float(north), float(up))
 
     def _send_position(self, lat_deg: float, lon_deg: float, alt_m: float, yaw_enu_rad: float | None, *,
                        relative: bool) -> None:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import enum
 import math
 import re
-from collections import deque
+from collections import Counter, deque
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -85,6 +85,8 @@ class VehicleState:
     fence_enabled: bool = False  # SYS_STATUS: the autopilot's geofence is on (GUIDED refuses targets outside it)
     fence_breached: bool = False  # SYS_STATUS: ... and breached now
     statustexts: deque[tuple[float, int, str]] = field(default_factory=lambda: deque(maxlen=50))
+    telemetry_rejected: Counter[str] = field(default_factory=Counter)  # messages dropped unbelieved, per reason
+    telemetry_fault: str = ""  # why the telemetry cannot be trusted now (a flood of drops, a second sender)
     # The latest reported (roll, pitch, yaw) not yet turned into ``attitude``: ATTITUDE arrives at
     # 10 Hz and scipy's Rotation costs more than the rest of the message, so it is built when read.
     _attitude_euler: tuple[float, float, float] | None = field(default=None, init=False, repr=False, compare=False)

@@ -11,6 +11,8 @@ GStreamer pipeline) go through :class:`VideoCaptureSource`.
 
 from __future__ import annotations
 
+import logging
+from collections import Counter
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
@@ -18,6 +20,8 @@ import cv2
 import numpy as np
 
 __all__ = ["Frame", "FrameSource", "Region", "VideoCaptureSource", "reads_regions"]
+
+log = logging.getLogger(__name__)
 
 #: A rectangle of the frame, pixels: (x0, y0, x1, y1), x1 and y1 excluded.
 Region = tuple[int, int, int, int]
@@ -43,6 +47,17 @@ class FrameSource(Protocol):
     def close(self) -> None: ...
 
 
+def _frame_problem(image: np.ndarray, shape: tuple[int, ...] | None) -> str | None:
+    """Why a captured image cannot be a camera frame: not_bgr8, empty, size_changed (None: it can)."""
+    if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
+        return "not_bgr8"
+    if image.shape[0] == 0 or image.shape[1] == 0:
+        return "empty"
+    if shape is not None and image.shape != shape:
+        return "size_changed"
+    return None
+
+
 def reads_regions(source: object) -> bool:
     """Whether ``source.read`` takes ``regions=`` (a real camera reads whole frames; the renderer need not)."""
     return bool(getattr(source, "reads_regions", False))
@@ -50,6 +65,10 @@ def reads_regions(source: object) -> bool:
 
 class VideoCaptureSource:
     """Frames from ``cv2.VideoCapture(target)``: a file path, a device index or a stream URL.
+
+    A frame is checked before it is believed: 8-bit, three channels (BGR), not empty, and the size
+    of the first one (the camera model's intrinsics are for one size). Others are dropped and
+    counted per reason in ``dropped``, and the first of each is logged.
 
     Args:
         target: path/URL string or integer device index.
@@ -62,11 +81,21 @@ class VideoCaptureSource:
             raise ValueError(f"cannot open video source {target!r}")
         self.size = size
         self._index = 0
+        self._shape: tuple[int, ...] | None = None
+        self.dropped: Counter[str] = Counter()
 
     def read(self, t: float) -> Frame | None:
         ok, image = self.capture.read()
         if not ok or image is None:
             return None
+        why = _frame_problem(image, self._shape)
+        if why is not None:
+            self.dropped[why] += 1
+            if self.dropped[why] == 1:
+                log.warning("camera frame dropped (%s): shape %s, dtype %s", why, getattr(image, "shape", None),
+                            getattr(image, "dtype", None))
+            return None
+        self._shape = image.shape
         if self.size is not None and (image.shape[1], image.shape[0]) != tuple(self.size):
             image = cv2.resize(image, tuple(self.size), interpolation=cv2.INTER_AREA)
         frame = Frame(t, image, self._index)

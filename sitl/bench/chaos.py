@@ -20,7 +20,7 @@ from sitl.world.scenario import Scenario
 
 __all__ = ["CHAOS_KINDS", "WINDOW_S", "with_random_fault"]
 
-CHAOS_KINDS = ("disarm", "battery_drop", "gps_loss", "link_loss", "ground_station_loiter")
+CHAOS_KINDS = ("disarm", "battery_drop", "gps_loss", "link_loss", "rc_loss", "ground_station_loiter")
 #: When a fault may strike (s of simulated time): after the boot (pre-arm ~40 s) and the climb.
 WINDOW_S = (60.0, 140.0)
 

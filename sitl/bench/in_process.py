@@ -75,6 +75,7 @@ class InProcessVehicle(LockStepVehicle):
         self.sim = Simulator(scenario, seed)
         vehicle_end, ground_end = byte_pipe()
         self.sim.attach(vehicle_end)
+        self.vehicle_end = vehicle_end  # the vehicle's side: a fuzz test writes here as (or beside) the vehicle
         end = ground_end if ground_tap is None else _TappedEnd(ground_end, ground_tap)
         # The pipe also carries the intruders' own telemetry: name the vehicle's system id, as a
         # ground station configured for one aircraft would, rather than lock onto whoever speaks first.

@@ -231,7 +231,7 @@ def rehearse(
                 if runner.finished:
                     message = runner.end_message()
                     outcome = _finished_outcome(runner.status, sim)
-                    if _falling(sim):  # the tree gave up on a disarmed aircraft in the air: score where it lands
+                    if _falling(sim) or _autopilot_landing(sim, runner):  # score where it comes down
                         outcome, message = _fly_out_failsafe(sim, scorer, scenario.time_limit_s, message)
                     run_status = RunStatus.SUCCESS if runner.status == py_trees.common.Status.SUCCESS else RunStatus.FAILURE
                     runner.stop(f"root returned {runner.status.name}")
@@ -381,6 +381,12 @@ def _rounded(value: float | None, digits: int = 2) -> float | None:
 
 def _falling(sim: Simulator) -> bool:
     return not sim.autopilot.armed and not sim.truth.on_ground
+
+
+def _autopilot_landing(sim: Simulator, runner: MissionRunner) -> bool:
+    """The tree stopped because the autopilot's own failsafe took the aircraft home or down (RTL, LAND)."""
+    aborted = runner.witness.foreign_change() is not None and runner.witness.texts
+    return bool(aborted) and sim.autopilot.armed and sim.autopilot.mode in ("RTL", "LAND")
 
 
 def _fly_out_failsafe(sim: Simulator, scorer: _Scorer, limit_s: float, why: str) -> tuple[str, str]:

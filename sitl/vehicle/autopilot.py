@@ -207,7 +207,7 @@ class Autopilot:
         self._fault_windows = {
             kind: tuple((f.at_s, math.inf if f.duration_s is None else f.at_s + f.duration_s)
                         for f in scenario.faults if f.kind == kind)
-            for kind in ("gps_loss", "battery_drop")
+            for kind in ("gps_loss", "battery_drop", "rc_loss")
         }
         # forced disarms still to come (a ground station's MAV_CMD_COMPONENT_ARM_DISARM 0 / 21196)
         self._disarms_due = sorted(f.at_s for f in scenario.faults if f.kind == "disarm")
@@ -220,6 +220,8 @@ class Autopilot:
         self._pilot = scenario.pilot
         self._gcs_events = list(scenario.ground_station)
         self.fs_gcs = False
+        self.fs_radio = False
+        self._rc_last = 0.0  # when the RC receiver last heard the transmitter
         self.fs_battery = False
         self.fs_ekf = False
         self._batt_low_since: float | None = None
@@ -440,8 +442,12 @@ class Autopilot:
         if self._gcs_last is not None and p["FS_GCS_ENABLE"] and self.armed and not self.fs_gcs:
             if t - self._gcs_last > p["FS_GCS_TIMEOUT"]:
                 self.fs_gcs = True
-                self._text(_SEV_WARNING, "GCS Failsafe")
-                self._failsafe_action(int(p["FS_GCS_ENABLE"]), {1: 6, 2: 6, 3: 6, 6: 6, 4: 9, 5: 9, 7: 17})
+                if int(p["FS_OPTIONS"]) & 16 and not self._mode.is_autopilot and not self.land_complete:
+                    self._text(_SEV_WARNING, "GCS Failsafe - Continuing Pilot Control")  # FS_OPTIONS bit 4
+                else:
+                    self._text(_SEV_WARNING, "GCS Failsafe")
+                    self._failsafe_action(int(p["FS_GCS_ENABLE"]), {1: 6, 2: 6, 3: 6, 6: 6, 4: 9, 5: 9, 7: 17})
+        self._radio_failsafe()
         # EKF failsafe: position lost while flying in a mode that needs it
         if not self.ekf_ok and self._gps_lost_at is not None and not self.fs_ekf and self.armed:
             self.fs_ekf = True
@@ -457,6 +463,30 @@ class Autopilot:
             self._batt_next_check = t + _BATT_CHECK_PERIOD_S
             self._battery_failsafe()
             self._fence_check()
+
+    def _radio_failsafe(self) -> None:
+        """Copter::failsafe_radio_on_event: RC silent for RC_FS_TIMEOUT while armed. FS_THR_ENABLE's
+        action unless FS_OPTIONS bit 2 keeps GUIDED flying; "Radio Failsafe Cleared" when it returns."""
+        p, t = self.p, self.time_s
+        if not self._in_fault("rc_loss"):
+            self._rc_last = t
+            if self.fs_radio:
+                self.fs_radio = False
+                self._text(_SEV_WARNING, "Radio Failsafe Cleared")
+            return
+        if self.fs_radio or t - self._rc_last <= p["RC_FS_TIMEOUT"] or not p["FS_THR_ENABLE"]:
+            return
+        self.fs_radio = True
+        if not self.armed:
+            return
+        if self.land_complete:
+            self._text(_SEV_WARNING, "Radio Failsafe - Disarming")
+            self._disarm()
+        elif self._mode.number == 4 and int(p["FS_OPTIONS"]) & 4:
+            self._text(_SEV_WARNING, "Radio Failsafe - Continuing Guided Mode")
+        else:
+            self._text(_SEV_WARNING, "Radio Failsafe")
+            self._failsafe_action(int(p["FS_THR_ENABLE"]), {1: 6, 2: 6, 3: 9, 4: 6, 5: 9, 6: 6, 7: 17})
 
     def _battery_failsafe(self) -> None:
         p = self.p

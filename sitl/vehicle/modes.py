@@ -556,6 +556,7 @@ class FlightMode(abc.ABC):
     requires_position = False
     allows_arming = False
     manual_throttle = False
+    is_autopilot = False  # Mode::is_autopilot(): the autopilot flies, not the pilot's sticks
 
     def enter(self, ap: ModeHost) -> str | None:
         """Initialise on entry; return a failure reason to refuse the change."""
@@ -706,6 +707,7 @@ class Guided(FlightMode):
     """
 
     number, name, requires_position, allows_arming = 4, "GUIDED", True, True
+    is_autopilot = True
 
     def __init__(self) -> None:
         self.sub = GuidedSubmode.IDLE
@@ -905,6 +907,7 @@ class Land(FlightMode):
     """Descends (LAND_SPEED_HIGH / WPNAV_SPEED_DN, easing to LAND_SPEED by LAND_ALT_LOW) and disarms."""
 
     number, name = 9, "LAND"
+    is_autopilot = True
 
     def __init__(self) -> None:
         self.hold_position = True
@@ -1085,6 +1088,7 @@ class Rtl(FlightMode):
     """
 
     number, name, requires_position = 6, "RTL", True
+    is_autopilot = True
 
     def __init__(self) -> None:
         self.state = RtlState.CLIMB

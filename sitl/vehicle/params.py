@@ -97,6 +97,10 @@ PARAM_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("ARMING_CHECK", 1, _I32, "", "pre-arm checks (0 = only the mandatory ones, otherwise all)"),
     ParamSpec("FS_GCS_ENABLE", 1, _I8, "", "GCS failsafe: 0 off, 1/2/3/6 RTL, 4/5 LAND, 7 BRAKE"),
     ParamSpec("FS_GCS_TIMEOUT", 5.0, _F, "s", "GCS heartbeat silence that triggers the GCS failsafe"),
+    ParamSpec("FS_THR_ENABLE", 1, _I8, "", "radio failsafe: 0 off, 1/2/4/6 RTL, 3/5 LAND, 7 BRAKE"),
+    ParamSpec("FS_OPTIONS", 16, _I32, "", "failsafe options (bit 2: radio failsafe continues GUIDED; bit 4: GCS "
+                                          "failsafe continues a mode the pilot flies)"),
+    ParamSpec("RC_FS_TIMEOUT", 1.0, _F, "s", "RC input silence that triggers the radio failsafe"),
     ParamSpec("FS_EKF_ACTION", 1, _I8, "", "EKF failsafe: 1 LAND, 2 ALT_HOLD, 3 LAND in every mode"),
     ParamSpec("GUID_OPTIONS", 0, _I32, "", "GUIDED options (bit 3: attitude-target thrust is thrust)"),
     ParamSpec("GUID_TIMEOUT", 3.0, _F, "s", "GUIDED velocity/attitude target timeout"),

@@ -18,7 +18,7 @@ from sitl.vehicle.physics import WindParams
 __all__ = ["BootParams", "Fault", "FAULT_KINDS", "GCS_MODES", "GroundStationEvent", "PilotEvent", "PilotScript",
            "VehicleSetup"]
 
-FAULT_KINDS = ("link_loss", "gps_loss", "battery_drop", "disarm")
+FAULT_KINDS = ("link_loss", "gps_loss", "battery_drop", "disarm", "rc_loss")
 
 #: Modes a scripted ground station can command (the simulated ArduCopter's, by mode number).
 GCS_MODES = {"STABILIZE": 0, "ALT_HOLD": 2, "GUIDED": 4, "LOITER": 5, "RTL": 6, "LAND": 9, "BRAKE": 17}
@@ -45,7 +45,8 @@ class Fault:
 
     Kinds: ``link_loss`` (the MAVLink radio goes silent; applied by the endpoint), ``gps_loss``
     (no fix, the EKF loses its position), ``battery_drop`` (a failing cell: the pack voltage
-    drops by one cell's worth), ``disarm`` (a forced disarm at ``at_s``; the duration is ignored).
+    drops by one cell's worth), ``disarm`` (a forced disarm at ``at_s``; the duration is ignored),
+    ``rc_loss`` (the RC receiver hears nothing: the radio failsafe after RC_FS_TIMEOUT).
     """
 
     at_s: float

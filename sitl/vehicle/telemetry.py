@@ -225,7 +225,7 @@ _SENSORS = (
     | mavlink2.MAV_SYS_STATUS_SENSOR_3D_ACCEL
     | mavlink2.MAV_SYS_STATUS_SENSOR_3D_MAG
     | mavlink2.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
-    | mavlink2.MAV_SYS_STATUS_SENSOR_RC_RECEIVER  # the SITL's RC input: present, no radio failsafe
+    | mavlink2.MAV_SYS_STATUS_SENSOR_RC_RECEIVER  # the SITL's RC input: healthy until a radio failsafe
 )
 _BATTERY = mavlink2.MAV_SYS_STATUS_SENSOR_BATTERY
 _GEOFENCE = mavlink2.MAV_SYS_STATUS_GEOFENCE
@@ -417,6 +417,8 @@ class TelemetryEncoder:
             health |= _PREARM  # how ArduPilot tells a GCS it is ready to arm
         if not ap.fs_battery:
             health |= _BATTERY
+        if ap.fs_radio:
+            health &= ~mavlink2.MAV_SYS_STATUS_SENSOR_RC_RECEIVER  # no valid RC input
         polygon = ap.missions.polygon_points()
         if fence_present(p, polygon):
             present |= _GEOFENCE

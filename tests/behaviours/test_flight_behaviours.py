@@ -7,7 +7,6 @@ import py_trees
 import pytest
 from flight_helpers import fly, runner_for, take_off
 
-from chaser_bt.geo import GeoPoint
 from chaser_bt.vehicle import LinkConfig
 from sitl.bench.in_process import InProcessVehicle
 
@@ -232,3 +231,49 @@ Parallel:
         assert first_move[2] > 9.5
         # The altitude came no later than straight up: the axes are shaped independently.
         assert len(track) <= len(up) + 5
+
+
+@pytest.mark.parametrize("leaf", [
+    "FlyToCue: {standoff_m: 20, min_alt_m: 20, height_above_m: 0, max_age_s: 1e6, stall_s: 15}",
+    "RHCSearch: {half_width_m: 400, spacing_m: 20, horizon: 3, stall_s: 15}",
+])
+def test_a_moving_goal_the_fence_refuses_fails_the_leaf_with_the_cause(scenario, leaf):
+    # ArduCopter's fence (60 m circle) refuses GUIDED targets outside it and holds: the cue 300 m north
+    # is never reached, and the leaf fails within its stall bound instead of chasing it for the battery.
+    import dataclasses
+
+    from chaser_bt.cue import TargetCue
+
+    fenced = InProcessVehicle(dataclasses.replace(scenario, params={**scenario.params, "FENCE_ENABLE": 1,
+                                                                    "FENCE_RADIUS": 60}), seed=7)
+    take_off(fenced, 20)
+    py_trees.blackboard.Blackboard.storage["/target/cue"] = TargetCue(
+        t=fenced.clock.now(), position_enu=np.array([0.0, 300.0, 20.0]), covariance_enu=np.diag([30.0, 30.0, 10.0]) ** 2,
+        source="radar")
+    start = fenced.sim.time_s
+    status, runner = fly(fenced, leaf, timeout_s=60)
+    assert status == Status.FAILURE, runner.tip_message()
+    assert fenced.sim.time_s - start < 20.0
+    message = runner.tree.root.feedback_message
+    assert message.startswith("no progress for 15 s") and "fence" in message, message
+    assert np.hypot(*fenced.sim.truth.pos_enu[:2]) < 60.0  # it never left the fence
+
+
+def test_a_cue_outside_the_command_envelope_fails_the_leaf_and_the_aircraft_holds(vehicle):
+    # One radar report at range 1e7 m became a cue: the goal is never sent, the leaf says why, and its
+    # exit's hold keeps the aircraft where it was.
+    from chaser_bt.cue import TargetCue
+
+    take_off(vehicle, 20)
+    before = vehicle.sim.truth.pos_enu.copy()
+    py_trees.blackboard.Blackboard.storage["/target/cue"] = TargetCue(
+        t=vehicle.clock.now(), position_enu=np.array([0.0, 1e7, 6e6]), covariance_enu=np.eye(3), source="radar")
+    sent: list = []
+    vehicle.link.add_listener(on_send=sent.append)
+    status, runner = fly(vehicle, "FlyToCue: {max_age_s: 1e6}", timeout_s=10)
+    assert status == Status.FAILURE
+    assert runner.tree.root.feedback_message.startswith("command not sent: position target 9999970 m from home")  # 30 m short
+    assert runner.tree.root.feedback_message.endswith("(hover sent)")
+    assert all(abs(m.alt) < 100 for m in sent if m.get_type() == "SET_POSITION_TARGET_GLOBAL_INT")
+    vehicle.fly(runner_for(vehicle, "Hover: {duration_s: 5}"), 6.0)
+    assert np.linalg.norm(vehicle.sim.truth.pos_enu - before) < 2.0

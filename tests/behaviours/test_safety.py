@@ -230,6 +230,14 @@ def test_link_lost_after_the_silence_on_the_mission_clock():
     assert rig.tick(4.2) == Status.FAILURE
 
 
+def test_untrustworthy_telemetry_is_a_lost_link():
+    rig = _Rig("LinkLost: {max_silence_s: 3.0}")
+    rig.state.t_boot_s = 5.0
+    assert rig.tick(1.0) == Status.FAILURE
+    rig.state.telemetry_fault = "two senders use the vehicle's ids"
+    assert rig.tick(1.1) == Status.SUCCESS and rig.tree.root.feedback_message == "two senders use the vehicle's ids"
+
+
 def test_latch_holds_success_until_autonomy_is_re_enabled():
     rig = _Rig('Latch: {child: {AlwaysFailure: {_successIf: "@breach"}}}', inputs="[breach]")
     bb = py_trees.blackboard.Client(name="t")

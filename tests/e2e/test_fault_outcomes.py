@@ -47,11 +47,12 @@ def test_the_autopilots_battery_failsafe_sends_the_patrol_home_early():
 def test_an_ekf_failsafe_is_the_autopilots_abort_and_its_land_is_left_alone():
     seen = {}
     report = rehearse(TREE, _patrol_with(faults=(Fault(FAULT_AT_S, "gps_loss"),)), seed=1,
-                      on_start=lambda runner, vehicle, resources: seen.update(vehicle=vehicle))
+                      on_start=lambda runner, vehicle, resources: seen.update(runner=runner))
     assert report.mission_outcome == "aborted by the autopilot", report.message
-    autopilot = seen["vehicle"].sim.autopilot
-    assert autopilot.mode == "LAND" and autopilot.armed  # the failsafe's LAND, not overridden by a hold
-    assert report.final_state == "under the autopilot (LAND)"
+    assert any("EKF Failsafe" in text for _, text in seen["runner"].witness.texts)
+    # The failsafe's LAND, not overridden by a hold, brings it down where it was: on the first leg, not at home.
+    assert report.outcome == "failsafe" and report.final_state == "landed"
+    assert report.landed_dist_m > 5.0
 
 
 def test_a_ground_stations_mode_change_is_a_take_over():
@@ -75,3 +76,23 @@ def test_a_fence_that_refuses_the_leg_fails_it_with_the_cause_instead_of_waiting
     assert "no progress for 30 s with 100 m to go" in report.message
     assert report.sim_time_s < 120.0  # within the stall bound of the first leg, not the battery's
     assert report.final_state == "holding"  # the failed leg's hold took
+
+
+def test_a_lost_transmitter_is_the_autopilots_radio_failsafe_and_its_rtl_lands_at_home():
+    # ArduCopter's FS_THR_ENABLE 1: RC silent for RC_FS_TIMEOUT while flying GUIDED -> "Radio Failsafe", RTL.
+    seen = {}
+    report = rehearse(TREE, _patrol_with(faults=(Fault(FAULT_AT_S, "rc_loss"),)), seed=1,
+                      on_start=lambda runner, vehicle, resources: seen.update(runner=runner))
+    assert report.mission_outcome == "aborted by the autopilot", report.message
+    assert [text for _, text in seen["runner"].witness.texts][0] == "Radio Failsafe"  # then the GCS's, once `run` ended
+    assert report.outcome == "failsafe" and report.landed_dist_m < 5.0 and report.final_state == "landed"
+
+
+def test_a_transmitter_lost_with_guided_allowed_to_continue_completes_the_patrol():
+    # FS_OPTIONS bit 2: the radio failsafe leaves GUIDED flying; the mission goes on and says what happened.
+    seen = {}
+    report = rehearse(TREE, _patrol_with(faults=(Fault(FAULT_AT_S, "rc_loss"),), params={"FS_OPTIONS": 4}), seed=1,
+                      on_start=lambda runner, vehicle, resources: seen.update(runner=runner))
+    assert report.mission_outcome == "completed", report.message
+    assert report.outcome == "landed" and report.landed_dist_m < 1.0
+    assert [text for _, text in seen["runner"].witness.texts] == ["Radio Failsafe - Continuing Guided Mode"]

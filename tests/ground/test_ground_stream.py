@@ -33,6 +33,7 @@ from chaser_bt.ground import (
 from chaser_bt.ground.protocol import (
     VIDEO_HEADER,
     Box,
+    VideoChunk,
     draw_boxes,
     estimate_message,
     json_datagram,
@@ -103,6 +104,30 @@ def test_tracks_flag_the_ownship():
 def test_garbage_datagrams_are_value_errors(data):
     with pytest.raises(ValueError):
         parse_datagram(data)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=200) | st.builds(lambda n: b"[" * n, st.integers(1, 200_000))
+       | st.builds(lambda tail: b"CBTV" + tail, st.binary(max_size=60)))
+def test_whatever_arrives_parse_datagram_raises_only_its_documented_error(data):
+    try:
+        parse_datagram(data)
+    except ValueError:
+        pass
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 3), st.integers(0, 5), st.integers(1, 6), st.binary(max_size=20)), max_size=40))
+def test_the_assembler_takes_any_chunk_sequence_and_returns_only_whole_frames(chunks):
+    # Chunks of one frame with different counts, repeats, any order: never an exception, and every
+    # frame returned is exactly the chunks of one count, in order.
+    assembler = FrameAssembler(keep=2)
+    for frame_id, index, count, payload in chunks:
+        if index >= count:
+            continue  # parse_chunk refuses those
+        done = assembler.add(VideoChunk(frame_id, index, count, 0.0, payload))
+        if done is not None:
+            assert done[0] == frame_id
 
 
 def test_oversized_json_message_is_refused_before_sending():
@@ -185,7 +210,7 @@ def _free_udp_port() -> int:
 def test_the_receiver_in_the_docs_reads_what_the_sender_sends(tmp_path):
     script = tmp_path / "ground_receiver.py"
     script.write_text(_receiver_script())
-    assert len(script.read_text().splitlines()) <= 35
+    assert len(script.read_text().splitlines()) <= 45
     port = _free_udp_port()
     proc = subprocess.Popen([sys.executable, str(script), str(port), str(tmp_path / "frames"), "30"],
                             stdout=subprocess.PIPE, text=True)
@@ -217,6 +242,40 @@ def test_the_receiver_in_the_docs_reads_what_the_sender_sends(tmp_path):
     assert frame["t"] == 9.6 and frame["bytes"] > MAX_DATAGRAM  # it did come in several chunks
     decoded = cv2.imread(str(tmp_path / "frames" / f"frame_{frame['frame_id']}.jpg"))
     assert decoded.shape == image.shape and (decoded[210, 248:253, 2] > 180).any()
+
+
+def test_the_receiver_in_the_docs_survives_hostile_datagrams(tmp_path):
+    # Garbage, a truncated JSON, a 5-byte chunk, nesting too deep to read, chunks of one frame that
+    # disagree on its size, an index past the count: it reads on, and the next status still prints.
+    script = tmp_path / "ground_receiver.py"
+    script.write_text(_receiver_script())
+    port = _free_udp_port()
+    proc = subprocess.Popen([sys.executable, str(script), str(port), str(tmp_path / "frames"), "30"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    lines: queue.Queue = queue.Queue()
+    threading.Thread(target=lambda: [lines.put(ln) for ln in proc.stdout], daemon=True).start()
+    hostile = [b"\x00garbage", b"{garbage", b"CBTV\x01", b"[" * 60_000, b'{"a":' * 10_000,
+               VIDEO_HEADER.pack(b"CBTV", 1, 0, 7, 0, 3, 1.0) + b"a", VIDEO_HEADER.pack(b"CBTV", 1, 0, 7, 1, 2, 1.0) + b"b",
+               VIDEO_HEADER.pack(b"CBTV", 1, 0, 8, 5, 2, 1.0) + b"c"]
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        try:
+            deadline = time.monotonic() + 20.0
+            while lines.empty() and time.monotonic() < deadline:  # until the receiver is listening
+                sock.sendto(json_datagram("status", 0, 0.0, {"mode": "GUIDED"}), ("127.0.0.1", port))
+                time.sleep(0.1)
+            assert json.loads(lines.get(timeout=1.0))["type"] == "status"
+            for data in hostile:
+                sock.sendto(data, ("127.0.0.1", port))
+            sock.sendto(json_datagram("status", 1, 2.0, {"mode": "RTL"}), ("127.0.0.1", port))
+            while True:
+                msg = json.loads(lines.get(timeout=10.0))
+                if msg["seq"] == 1:
+                    break
+            assert msg["mode"] == "RTL" and proc.poll() is None
+        finally:
+            proc.kill()
+            _, err = proc.communicate()
+    assert "Traceback" not in err, err
 
 
 # ----------------------------------------------------------------------------- the behaviour, flown

@@ -39,12 +39,24 @@ def test_missing_resources_names_the_resource_its_nodes_and_how_to_give_it():
     assert str(err) == "tree T needs a radar (needed by track): give --radar HOST:PORT"
 
 
-def test_check_sensors_counts_only_what_the_operator_named():
+def test_check_sensors_counts_only_what_the_operator_named(tmp_path):
     chase = load_tree(TREES / "chase.yaml")
+    pose = tmp_path / "pose.json"
+    pose.write_text('{"lat_deg": 42.5, "lon_deg": -71.6, "alt_m": 80, "yaw_deg": 0, "pitch_deg": 10, "roll_deg": 0}')
     with pytest.raises(FlightSensorError, match="--camera") as e:
-        check_sensors(chase, FlightSensorOptions(radar_listen="0.0.0.0:4950"))
+        check_sensors(chase, FlightSensorOptions(radar_listen="0.0.0.0:4950", radar_pose_file=pose))
     assert "--radar" not in str(e.value)
-    check_sensors(chase, FlightSensorOptions(radar_listen="0.0.0.0:4950", camera="0"))  # nothing missing
+    check_sensors(chase, FlightSensorOptions(radar_listen="0.0.0.0:4950", radar_pose_file=pose, camera="0"))
+
+
+def test_every_radar_option_is_read_before_anything_connects(tmp_path):
+    chase = load_tree(TREES / "chase.yaml")
+    with pytest.raises(FlightSensorError, match="--radar needs --radar-pose"):
+        check_sensors(chase, FlightSensorOptions(radar_listen="0.0.0.0:4950", camera="0"))
+    binary = tmp_path / "pose.bin"
+    binary.write_bytes(bytes(range(256)))
+    with pytest.raises(FlightSensorError, match="not a text file"):
+        check_sensors(chase, FlightSensorOptions(radar_listen="0.0.0.0:4950", radar_pose_file=binary, camera="0"))
 
 
 def test_the_runner_refuses_to_set_up_a_tree_missing_a_resource():

@@ -104,3 +104,50 @@ def test_queue_and_udp_sources_deliver_datagrams():
         assert RadarStreamReader().accept_all(got)[0].seq == 1
     finally:
         src.close()
+
+
+def test_a_track_the_radar_could_not_report_is_dropped_from_its_scan_and_counted():
+    # One datagram with a track at 1e7 m (and one at 1e300 m, whose covariance would be NaN) beside a
+    # real one: the real track stays, the others go.
+    reader = RadarStreamReader()
+    tracks = (TrackReport(1, 1e7, 0.0, 0.1), TrackReport(2, 212.4, -0.1, 0.09, np.array([1.2, -4.0, 0.1])),
+              TrackReport(3, 1e300, 0.0, 0.0), TrackReport(4, 300.0, 0.0, 0.0, np.array([400.0, 0.0, 0.0])))
+    scan = reader.accept(encode_scan(RadarScan(1.0, 1, tracks)))
+    assert [tr.track_id for tr in scan.tracks] == [2]
+    assert reader.counts.tracks_out_of_envelope == 3 and reader.counts.accepted == 1
+
+
+def test_with_a_key_only_signed_fresh_datagrams_are_believed():
+    from chaser_bt.ground.auth import StreamSigner, StreamVerifier
+
+    key, clock = bytes(range(32)), [1.8e9]
+    reader = RadarStreamReader(verifier=StreamVerifier(key, unix_time=lambda: clock[0]))
+    signer = StreamSigner(key, link_id=3, unix_time=lambda: clock[0])
+    plain = encode_scan(RadarScan(1.0, 1, (TrackReport(7, 200.0, 0.0, 0.1),)))
+    signed = signer.sign(plain)
+    assert reader.accept(plain) is None  # unsigned
+    assert reader.accept(StreamSigner(bytes(32), unix_time=lambda: clock[0]).sign(plain)) is None  # another key
+    assert reader.accept(signed).tracks[0].track_id == 7
+    assert reader.accept(signed) is None  # the same datagram again: a replay
+    assert reader.counts.unauthenticated == 3 and reader.counts.accepted == 1
+
+
+def test_a_pinned_source_drops_datagrams_from_other_addresses():
+    radar, intruder = socket.socket(socket.AF_INET, socket.SOCK_DGRAM), socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    radar.bind(("127.0.0.1", 0))
+    intruder.bind(("127.0.0.2", 0))  # the whole of 127/8 is loopback on Linux
+    source = UdpDatagramSource("127.0.0.1", 0, allowed_hosts=frozenset({"127.0.0.1"}))
+    try:
+        for sock, payload in ((intruder, b"forged"), (radar, b"real"), (intruder, b"forged again")):
+            sock.sendto(payload, ("127.0.0.1", source.port))
+        import time
+
+        deadline, got = time.monotonic() + 2.0, []
+        while time.monotonic() < deadline and (len(got) < 1 or source.counts.foreign_source < 2):
+            got += source.receive()
+            time.sleep(0.01)
+        assert got == [b"real"] and source.counts.foreign_source == 2
+    finally:
+        source.close()
+        radar.close()
+        intruder.close()

@@ -155,3 +155,70 @@ def test_udp_and_several_tcp_clients_are_served_at_once():
 def test_speedup_must_be_positive():
     with pytest.raises(ValueError, match="speedup"):
         serve(quick_scenario(), speedup=0.0, udp_port=0, tcp_port=0)
+
+
+def test_a_peer_sending_garbage_does_not_cost_another_udp_client_its_acks():
+    # One parser per UDP peer: a 2-byte "\xfd\xff" (a MAVLink 2 start and a length) every few ms
+    # from another peer must not swallow the real client's packets.
+    import socket
+    import time
+
+    with running_server(quick_scenario(), speedup=5.0) as urls:
+        conn = _connect(urls["udpout"])
+        port = int(urls["udpout"].rsplit(":", 1)[1])
+        noise = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        stop = threading.Event()
+
+        def spam():
+            while not stop.is_set():
+                noise.sendto(b"\xfd\xff", ("127.0.0.1", port))
+                time.sleep(0.002)
+
+        spammer = threading.Thread(target=spam, daemon=True)
+        spammer.start()
+        try:
+            acks = 0
+            for _ in range(8):
+                conn.mav.command_long_send(1, 1, mav.MAV_CMD_REQUEST_MESSAGE, 0, mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
+                                           0, 0, 0, 0, 0, 0)
+                acks += conn.recv_match(type="COMMAND_ACK", blocking=True, timeout=3.0) is not None
+        finally:
+            stop.set()
+            spammer.join()
+            noise.close()
+        assert acks == 8
+
+
+def test_clients_beyond_the_cap_are_refused_and_the_server_lives_on():
+    import socket
+
+    urls: queue.Queue = queue.Queue()
+    stop = threading.Event()
+    thread = threading.Thread(target=serve, args=(quick_scenario(),), daemon=True,
+                              kwargs=dict(speedup=20.0, udp_port=0, tcp_port=0, ready=urls.put, stop=stop, max_clients=4))
+    thread.start()
+    socks = []
+    try:
+        tcp_port = int(next(u for u in urls.get(timeout=WALL_TIMEOUT_S) if u.startswith("tcp")).rsplit(":", 1)[1])
+        for _ in range(1100):  # beyond select()'s 1024 descriptors, the limit the server once died on
+            s = socket.create_connection(("127.0.0.1", tcp_port), timeout=WALL_TIMEOUT_S)
+            socks.append(s)
+        served, refused = 0, 0
+        for s in socks[:8]:  # the first four are served; later ones were closed at once
+            s.settimeout(WALL_TIMEOUT_S)
+            try:
+                data = s.recv(4096)
+            except ConnectionResetError:
+                data = b""
+            served, refused = served + bool(data), refused + (not data)
+        assert (served, refused) == (4, 4)
+        assert thread.is_alive()
+        conn = socks[0]  # a served client still gets its heartbeats
+        conn.settimeout(WALL_TIMEOUT_S)
+        assert conn.recv(4096)
+    finally:
+        for s in socks:
+            s.close()
+        stop.set()
+        thread.join(timeout=WALL_TIMEOUT_S)
+    assert not thread.is_alive()

@@ -284,6 +284,20 @@ def test_set_mode_times_out_when_the_heartbeat_never_shows_it():
     assert cmd.status is CommandStatus.TIMED_OUT and "telemetry did not show it" in cmd.reason
 
 
+def test_a_lost_ack_is_not_a_refusal_when_the_heartbeat_shows_the_mode():
+    # The vehicle switched (its heartbeat says RTL) but every ack was lost on a noisy link: done, not
+    # "no answer after 4 attempts".
+    r = make_rig()
+    r.run(1.2)
+    r.fake.answers[SET_MODE] = _no_answer
+    cmd = r.link.set_mode("RTL")
+    r.run(0.5)
+    assert cmd.status is CommandStatus.SENT
+    r.fake.mode_number = 6
+    r.run(1.5, until=lambda: cmd.done)
+    assert cmd.ok and cmd.attempts == 1
+
+
 def test_position_mode_on_the_ground_waits_for_a_position_estimate():
     r = make_rig(ready=False)
     r.run(1.2)

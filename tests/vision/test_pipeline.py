@@ -81,6 +81,22 @@ def test_no_detection_means_no_estimate_and_tracks_expire():
     assert pipe.process(Frame(0.0, np.zeros((480, 640, 3), np.uint8), 0), pose) is None
 
 
+def test_a_camera_frame_that_cannot_be_one_is_dropped_and_counted(tmp_path):
+    import cv2
+
+    path = str(tmp_path / "clip.avi")
+    writer = cv2.VideoWriter(path, cv2.VideoWriter_fourcc(*"MJPG"), 10, (64, 48))
+    writer.write(np.zeros((48, 64, 3), np.uint8))
+    writer.release()
+    src = VideoCaptureSource(path)
+    glitches = iter([np.zeros((48, 64), np.uint8), np.zeros((48, 64, 3), np.float32), np.zeros((0, 64, 3), np.uint8),
+                     np.zeros((48, 64, 3), np.uint8), np.zeros((96, 128, 3), np.uint8)])
+    src.capture = type("Glitchy", (), {"read": lambda self: (True, next(glitches)), "release": lambda self: None})()
+    frames = [src.read(0.1 * k) for k in range(5)]
+    assert [f is not None for f in frames] == [False, False, False, True, False]
+    assert src.dropped == {"not_bgr8": 2, "empty": 1, "size_changed": 1}
+
+
 def test_video_file_source_reads_frames_and_camera_sensor_runs_the_pipeline(tmp_path):
     import cv2
 

@@ -27,10 +27,15 @@ def _det(x, y) -> Detection:
 @pytest.mark.parametrize("kind", sorted(TRACKER_KINDS))
 def test_tracker_follows_a_moving_target_between_detections(kind):
     cv2.setRNGSeed(0)  # MIL samples with OpenCV's global RNG: what ran before in the process must not move it
-    bank = TrackerBank([kind])
-    bank.correct(_scene(100, 100), [_det(100, 100)], 0.0)
-    for k in range(1, 6):
-        tracks = bank.advance(_scene(100 + 2 * k, 100 + k), 0.1 * k)
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)  # ... and the RNG is per thread: OpenCV's worker threads would each draw from their own
+    try:
+        bank = TrackerBank([kind])
+        bank.correct(_scene(100, 100), [_det(100, 100)], 0.0)
+        for k in range(1, 6):
+            tracks = bank.advance(_scene(100 + 2 * k, 100 + k), 0.1 * k)
+    finally:
+        cv2.setNumThreads(threads)
     assert len(tracks) == 1
     cx, cy = tracks[0].centre
     tol = 8 if kind == "mil" else 3  # MIL's boosting search steps coarsely on this small synthetic patch
