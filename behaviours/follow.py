@@ -32,7 +32,9 @@ from chaser_bt.tree import NodeKind, input_port, output_port, register_behaviour
 Status = py_trees.common.Status
 
 TELEMETRY_KEY = "/target/telemetry"
-STICK_PARAMS = ("ANGLE_MAX", "PILOT_Y_RATE", "PILOT_SPEED_UP", "PILOT_SPEED_DN", "THR_DZ", "RC1_DZ", "RC2_DZ", "RC4_DZ")
+#: The stick mapping's parameters; where ArduCopter 4.7 renamed one, both names (a vehicle answers one).
+STICK_PARAMS = (("ANGLE_MAX", "ATC_ANGLE_MAX"), ("PILOT_Y_RATE",), ("PILOT_SPEED_UP", "PILOT_SPD_UP"),
+                ("PILOT_SPEED_DN", "PILOT_SPD_DN"), ("THR_DZ",), ("RC1_DZ",), ("RC2_DZ",), ("RC4_DZ",))
 ESTIMATE_KEY = "/target/estimate"
 
 
@@ -111,9 +113,10 @@ class _Follow(CommandingBehaviour):
                               max_lean_rad=math.radians(self.get_input("max_lean_deg")) or None,
                               measured_rates=self.get_input("measured_rates"), **self.config_options())
         link = self._link()
-        for name in STICK_PARAMS:  # the stick mapping is the vehicle's: ask for its parameters
-            if name not in link.params:
-                link.request_param(name)
+        for names in STICK_PARAMS:  # the stick mapping is the vehicle's: ask for its parameters
+            if not any(name in link.params for name in names):
+                for name in names:
+                    link.request_param(name)
         self.controller = FollowController(config, StickMap.from_params(link.params))
         self._mode_cmd = None
         self._stale_since: float | None = None

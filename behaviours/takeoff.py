@@ -34,7 +34,8 @@ class ArmAndTakeoff(CommandingBehaviour):
     """
 
     INPUT_PORTS = {
-        "altitude_m": input_port(float, "Take-off altitude above home (m)", default=20.0, above=0),
+        "altitude_m": input_port(float, "Take-off altitude above home (m)", default=20.0, above=0,
+                                 maximum=500),  # the command envelope's ceiling
         "tolerance_m": input_port(float, "Altitude counted as reached within this (m)", default=1.0, minimum=0),
         "state": state_port(),
     }

@@ -99,6 +99,8 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                           formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more logging (-vv for debug); "
                         "accepted before or after the subcommand")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}",
+                        help="print the installed chaser-bt's version and exit")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     def command(name: str, handler: Callable[[argparse.Namespace], int], help_: str) -> argparse.ArgumentParser:
@@ -121,13 +123,14 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
 
     p = command("run", _run, "fly a tree against a vehicle (the simulator, ArduPilot SITL or a real ArduCopter)")
     tree_argument(p)
-    p.add_argument("--connect", required=True, metavar="URL",
+    p.add_argument("--connect", required=True, type=arg.connection_string, metavar="URL",
                    help="pymavlink connection string: tcp:HOST:PORT, udpout:HOST:PORT, udpin:HOST:PORT or a serial device (required)")
-    p.add_argument("--rate-hz", type=arg.positive_float, default=10.0, metavar="HZ", help="tick rate, Hz (default 10)")
+    p.add_argument("--rate-hz", type=arg.tick_rate, default=10.0, metavar="HZ",
+                   help=f"tick rate, Hz, at most {arg.MAX_TICK_RATE_HZ:g} (the vehicle's clock counts milliseconds; default 10)")
     p.add_argument("--clock", choices=("vehicle", "wall"), default="vehicle",
                    help="tick on the vehicle's boot time (default; right at any sim speed-up) or on the wall clock")
     p.add_argument("--show-ticks", action="store_true", help="print the tree with statuses whenever a status changes")
-    p.add_argument("--radar", metavar="HOST:PORT", help="receive ground-radar datagrams here (docs/radar.md; default: no radar)")
+    p.add_argument("--radar", type=arg.host_port, metavar="HOST:PORT", help="receive ground-radar datagrams here (docs/radar.md; default: no radar)")
     p.add_argument("--radar-pose", type=arg.input_file, metavar="FILE.json",
                    help="the radar's pose: `chaser-bt calibrate --json` output (required with --radar)")
     p.add_argument("--radar-time-offset", type=float, default=0.0, metavar="S", help="radar time + S = mission time, s (default 0)")
@@ -158,7 +161,8 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                    help="scenario file (sitl/scenarios/README.md; required)")
     p.add_argument("--seed", type=arg.seed, default=DEFAULT_SEED, metavar="N",
                    help=f"simulator seed: the same seed flies the same flight (default {DEFAULT_SEED})")
-    p.add_argument("--rate-hz", type=arg.positive_float, default=10.0, metavar="HZ", help="tick rate, Hz (default 10)")
+    p.add_argument("--rate-hz", type=arg.tick_rate, default=10.0, metavar="HZ",
+                   help=f"tick rate, Hz, at most {arg.MAX_TICK_RATE_HZ:g} (the vehicle's clock counts milliseconds; default 10)")
     p.add_argument("--time-limit", type=arg.positive_float, metavar="S",
                    help="end the flight after S simulated seconds if the scenario's own limit is later (default: the scenario's)")
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")
@@ -221,6 +225,9 @@ def _signing(args: argparse.Namespace):
         return None
     from chaser_bt.vehicle.signing import SigningConfig, SigningKeyError
 
+    why = arg.file_problem(args.signing_key)
+    if why is not None:
+        raise _BadInput(f"--signing-key: {why}")
     try:
         return SigningConfig.from_file(args.signing_key, link_id=args.signing_link_id)
     except (SigningKeyError, OSError, ValueError) as exc:
@@ -244,6 +251,8 @@ def _load_tree(path: Path):
 def _validate(args: argparse.Namespace) -> int:
     from chaser_bt.tree import validate_tree
 
+    if args.tree.is_dir():
+        raise _BadInput(f"{args.tree}: is a folder, not a tree file")
     if not args.tree.is_file():
         raise _BadInput(f"{args.tree}: no such file")
     problems = validate_tree(args.tree)
@@ -526,14 +535,26 @@ def _sitl(args: argparse.Namespace) -> int:
         sys.stdout.flush()
 
     try:
-        serve(scenario, seed=args.seed, speedup=args.speedup, udp_port=args.udp_port, tcp_port=args.tcp_port,
-              ready=ready, signing=signing)
+        interrupted = serve(scenario, seed=args.seed, speedup=args.speedup, udp_port=args.udp_port,
+                            tcp_port=args.tcp_port, ready=ready, signing=signing)
     except OSError as exc:
         if exc.errno not in (errno.EADDRINUSE, errno.EACCES, errno.EADDRNOTAVAIL):
             raise
         raise _BadInput(f"--tcp-port {args.tcp_port} / --udp-port {args.udp_port}: cannot listen on loopback "
                         f"({exc.strerror}); is another `chaser-bt sitl` running? pick other ports") from None
+    if interrupted:  # Ctrl-C or SIGTERM stopped the server: exit 130 like every interrupted command
+        raise KeyboardInterrupt
     return EXIT_OK
+
+
+def _version() -> str:
+    """The installed package's version (``unknown`` when run from a checkout that was never installed)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("chaser-bt")
+    except PackageNotFoundError:
+        return "unknown"
 
 
 if __name__ == "__main__":

@@ -18,7 +18,8 @@ from typing import Callable, Iterable, NoReturn
 
 __all__ = [
     "PROG", "ChaserParser", "did_you_mean", "seed", "positive_float", "non_negative_float", "positive_int",
-    "non_negative_int", "port", "listen_port", "geodetic_point", "input_file", "output_file", "output_dir", "add_verbose_everywhere",
+    "non_negative_int", "port", "listen_port", "groot2_port", "tick_rate", "host_port", "connection_string",
+    "geodetic_point", "file_problem", "input_file", "output_file", "output_dir", "add_verbose_everywhere",
     "AUTOPILOTS", "add_autopilot_arguments",
 ]
 
@@ -39,10 +40,37 @@ class ChaserParser(argparse.ArgumentParser):
     """
 
     def error(self, message: str) -> NoReturn:
+        message = self._dash_value_message(message)
         self.print_usage(sys.stderr)
         self.exit(2, f"{PROG}: {message}\n")
 
+    def _dash_value_message(self, message: str) -> str:
+        """argparse's "expected one argument" when the value starts with '-' (``--seeds -3-2``): what is wrong with it.
+
+        argparse takes such a value for an option unless it reads as a plain negative number; say
+        what the option's type makes of it, or how to pass it (``--seeds=-3-2``).
+        """
+        if not message.endswith(": expected one argument"):
+            return message
+        words = list(getattr(self, "_given_args", None) or ())
+        for option, value in zip(words, words[1:]):
+            action = self._option_string_actions.get(option)
+            if action is None or not message.startswith(f"argument {'/'.join(action.option_strings)}:"):
+                continue
+            if len(value) < 2 or value[0] != "-" or not (value[1].isdigit() or value[1] == "."):
+                continue
+            if callable(action.type):
+                try:
+                    action.type(value)
+                except argparse.ArgumentTypeError as exc:
+                    return f"argument {option}: {exc}"
+                except (TypeError, ValueError):
+                    pass
+            return f"argument {option}: expected one argument; a value starting with '-' is written {option}={value}"
+        return message
+
     def parse_known_args(self, args=None, namespace=None):
+        self._given_args = list(sys.argv[1:] if args is None else args)
         if self._subparsers is None and args is not None:  # a subcommand: name a misspelt option before a missing one
             for text in args:
                 if text == "--":
@@ -89,6 +117,38 @@ positive_int = _number(int, lambda v: v > 0, ">= 1")
 non_negative_int = _number(int, lambda v: v >= 0, ">= 0")
 port = _number(int, lambda v: 1 <= v <= 65535, "in 1-65535 (a UDP/TCP port)")
 listen_port = _number(int, lambda v: 0 <= v <= 65535, "in 0-65535 (a port; 0: any free one)")
+#: Groot2 is served on PORT and PORT + 1 (BT.CPP's Groot2Publisher), so PORT + 1 must be a port too.
+groot2_port = _number(int, lambda v: 1 <= v <= 65534, "in 1-65534 (Groot2 serves on PORT and PORT+1)")
+#: Mission tick rate: at most 1000 Hz, because the vehicle's clock that ticks are timed on (MAVLink's
+#: time_boot_ms) counts whole milliseconds: a shorter period cannot be told apart from no wait.
+MAX_TICK_RATE_HZ = 1000.0
+tick_rate = _number(float, lambda v: math.isfinite(v) and 0 < v <= MAX_TICK_RATE_HZ,
+                    f"in (0, {MAX_TICK_RATE_HZ:g}] (Hz; the vehicle's clock counts milliseconds)")
+
+
+def host_port(text: str) -> str:
+    """``HOST:PORT`` to listen on (``0.0.0.0:4950``; HOST may be empty: every interface), PORT in 1-65535."""
+    host, sep, number = text.rpartition(":")
+    if not sep or not (number.isascii() and number.isdigit()):
+        raise argparse.ArgumentTypeError(f"expected HOST:PORT such as 0.0.0.0:4950, got {text!r}")
+    if not (len(number) <= 5 and 1 <= int(number) <= 65535):
+        raise argparse.ArgumentTypeError(f"{text}: port {number} out of range (expected 1-65535)")
+    return text
+
+
+#: pymavlink's network schemes, as chaser_bt.vehicle.connection accepts them (that module is not imported
+#: here: it loads pymavlink, and the command line is read before anything is loaded).
+_NETWORK_SCHEMES = ("udpin:", "udpout:", "udp:", "tcpin:", "tcp:")
+
+
+def connection_string(text: str) -> str:
+    """A ``--connect`` URL whose port, if it names one, is a port (1-65535); the rest is checked on connecting."""
+    scheme = next((s for s in _NETWORK_SCHEMES if text.startswith(s)), None)
+    if scheme is not None:
+        _, sep, number = text[len(scheme):].rpartition(":")
+        if sep and number.isascii() and number.isdigit() and not (len(number) <= 5 and 1 <= int(number) <= 65535):
+            raise argparse.ArgumentTypeError(f"{text}: port {number} out of range (expected 1-65535)")
+    return text
 
 
 def geodetic_point(text: str) -> tuple[float, float, float]:
@@ -115,12 +175,22 @@ def ip_address(text: str) -> str:
         raise argparse.ArgumentTypeError(f"{text!r} is not an IP address (such as 192.0.2.7)") from None
 
 
+def file_problem(path: str | Path) -> str | None:
+    """Why ``path`` cannot be read as a file (``no such file X``, ``X is a folder, not a file``), or None."""
+    path = Path(path)
+    if path.is_file():
+        return None
+    if path.is_dir():
+        return f"{path} is a folder, not a file"
+    return f"{path} is not a file" if path.exists() else f"no such file {path}"
+
+
 def input_file(text: str) -> Path:
     """A file to read: it exists and is a file."""
-    path = Path(text)
-    if not path.is_file():
-        raise argparse.ArgumentTypeError(f"no such file {path}" if not path.exists() else f"{path} is not a file")
-    return path
+    why = file_problem(text)
+    if why is not None:
+        raise argparse.ArgumentTypeError(why)
+    return Path(text)
 
 
 def _writable_folder(folder: Path) -> str | None:

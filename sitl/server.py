@@ -50,8 +50,10 @@ def serve(
     physics_hz: float | None = None,
     signing: SigningConfig | None = None,
     max_clients: int = 32,
-) -> None:
+) -> bool:
     """Run the simulator in real time (times ``speedup``) until ``stop`` is set, Ctrl-C or SIGTERM.
+
+    Returns True when Ctrl-C or SIGTERM ended it (the command exits 130), False when ``stop`` was set.
 
     Args:
         scenario: what to simulate.
@@ -75,7 +77,8 @@ def serve(
     udp = UdpPort(udp_port, monotonic=monotonic, max_peers=max_clients)
     tcp = TcpServer(tcp_port, max_clients=max_clients)
     clients: list[TcpClientPort | UdpPeer] = []
-    previous_sigterm = _on_sigterm(stop)
+    signalled = threading.Event()
+    previous_sigterm = _on_sigterm(stop, signalled)
     try:
         urls = [f"tcp:{LOOPBACK}:{tcp.port}", f"udpout:{LOOPBACK}:{udp.port}"]
         log.info("simulating %s at %gx on %s", scenario.name, speedup, ", ".join(urls))
@@ -84,6 +87,7 @@ def serve(
         _loop(sim, udp, tcp, clients, speedup, stop, monotonic)
     except KeyboardInterrupt:
         log.info("interrupted")
+        signalled.set()
     finally:
         if sim.endpoint.signing is not None:
             c = sim.endpoint.signing.counters
@@ -97,13 +101,19 @@ def serve(
         tcp.close()
         udp.close()
         log.info("stopped at sim time %.2f s", sim.time_s)
+    return signalled.is_set()
 
 
-def _on_sigterm(stop: threading.Event):
-    """Make SIGTERM set ``stop`` (only possible from the main thread); returns the old handler."""
+def _on_sigterm(stop: threading.Event, signalled: threading.Event):
+    """Make SIGTERM set ``signalled`` and ``stop`` (only possible from the main thread); returns the old handler."""
     if threading.current_thread() is not threading.main_thread():
         return None
-    return signal.signal(signal.SIGTERM, lambda signum, frame: stop.set())
+
+    def on_sigterm(signum, frame) -> None:
+        signalled.set()
+        stop.set()
+
+    return signal.signal(signal.SIGTERM, on_sigterm)
 
 
 def _loop(

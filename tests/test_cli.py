@@ -86,6 +86,34 @@ def test_missing_files_are_bad_input(tmp_path, capsys):
     assert main(["rehearse", str(PATROL), "--scenario", str(tmp_path / "nope.yaml")]) == 2
 
 
+def test_validate_refuses_infinities_and_numbers_no_float_holds(tmp_path, capsys):
+    path = tmp_path / "big.yaml"
+    path.write_text("version: 1\ntrees:\n  T:\n    Sequence:\n      children:\n"
+                    "        - ArmAndTakeoff: {altitude_m: 1e400}\n"
+                    "        - Hover: {duration_s: inf}\n"
+                    f"        - Hover: {{duration_s: {'9' * 5000}}}\n")
+    assert main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert f"{path}:6:39: port 'altitude_m' of ArmAndTakeoff must be a finite number, got inf" in err
+    assert f"{path}:7:31: port 'duration_s' of Hover must be a finite number, got inf" in err
+    assert f"{path}:8:31: cannot read value: Exceeds the limit (4300 digits)" in err
+    assert "3 problem(s)" in err and "Traceback" not in err
+
+
+def test_validate_a_folder_says_it_is_a_folder(tmp_path, capsys):
+    assert main(["validate", str(tmp_path)]) == 2
+    assert capsys.readouterr().err == f"chaser-bt: {tmp_path}: is a folder, not a tree file\n"
+
+
+def test_version_prints_the_installed_packages_version(capsys):
+    from importlib.metadata import version
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out == f"chaser-bt {version('chaser-bt')}\n"
+
+
 def test_show_prints_the_outline_with_port_values(capsys):
     assert main(["show", str(PATROL)]) == 0
     out = capsys.readouterr().out

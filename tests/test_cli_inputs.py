@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import argparse
 import socket
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -13,6 +15,7 @@ from chaser_bt.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 PATROL = str(ROOT / "trees" / "patrol.yaml")
+CHASE = str(ROOT / "trees" / "chase.yaml")
 SCENARIO = str(ROOT / "sitl" / "scenarios" / "patrol.yaml")
 NO_DIR = "/nonexistent-folder/x"
 
@@ -22,7 +25,23 @@ def _yolo_folder(tmp_path: Path) -> str:
     return str(tmp_path / "yolo")
 
 
-# (argv, what the error line must contain); {tmp} is a scratch folder, {yolo} an empty YOLO folder.
+def _odd_files(tmp_path: Path) -> None:
+    """Files no command can read: binary.bin (not UTF-8), empty.txt, and a scenario and a radar pose holding
+    an integer of 5000 digits (more than Python's int() reads from text), a pose with one of 400 (past a
+    float), and a good pose."""
+    (tmp_path / "binary.bin").write_bytes(bytes(range(256)) * 4)
+    (tmp_path / "empty.txt").write_bytes(b"")
+    (tmp_path / "huge.yaml").write_text(f"name: x\nhome: {{lat_deg: 1, lon_deg: 2, alt_m: {'9' * 5000}}}\n")
+    (tmp_path / "huge.json").write_text(f'{{"lat_deg": 1, "lon_deg": 2, "yaw_deg": {"9" * 400}}}')
+    (tmp_path / "good_pose.json").write_text('{"lat_deg": 1, "lon_deg": 2, "yaw_deg": 0}')
+
+
+RUN = ["run", PATROL, "--connect", "tcp:127.0.0.1:9"]
+RADAR = ["run", CHASE, "--connect", "tcp:127.0.0.1:9", "--camera", "0", "--radar", "0.0.0.0:4950"]
+CAMPAIGN = ["campaign", PATROL, "--scenarios", SCENARIO, "--out", "{tmp}/c"]
+
+# (argv, what the error line must contain); {tmp} is a scratch folder (with the files of _odd_files),
+# {yolo} an empty YOLO folder.
 BAD_INPUTS = [
     (["rehers", PATROL], "did you mean rehearse"),
     (["validate", PATROL, "--formt", "dot"], "unrecognized option --formt"),
@@ -84,13 +103,62 @@ BAD_INPUTS = [
     (["quantize-detector", "--calib", "{yolo}", "--weights", str(ROOT / "README.md")], "--weights"),
     (["quantize-detector", "--calib", "{yolo}", "--size", "100"], "--size"),
     (["quantize-detector", "--calib", "{yolo}", "--out", NO_DIR + "/d.onnx"], "--out"),
+    # files that are binary, empty, folders or hold numbers no parser reads
+    (["rehearse", PATROL, "--scenario", "{tmp}/binary.bin"], "binary.bin: not a scenario: byte 128 is not UTF-8"),
+    (["rehearse", PATROL, "--scenario", "{tmp}/empty.txt"], "empty.txt"),
+    (["rehearse", PATROL, "--scenario", "{tmp}"], "cannot read scenario"),
+    (["rehearse", PATROL, "--scenario", "{tmp}/huge.yaml"], "huge.yaml: not a scenario"),
+    (["campaign", PATROL, "--scenarios", "{tmp}/binary.bin", "--out", "{tmp}/c"], "binary.bin: not a scenario"),
+    (["campaign", "{tmp}", "--scenarios", SCENARIO, "--out", "{tmp}/c"], "is a folder, not a tree file"),
+    (["sitl", "--scenario", "{tmp}/binary.bin"], "binary.bin: not a scenario"),
+    (["sitl", "--scenario", "{tmp}/huge.yaml"], "huge.yaml: not a scenario"),
+    (["show", "{tmp}/binary.bin"], "binary.bin: invalid tree"),
+    (["validate", "{tmp}"], "is a folder, not a tree file"),
+    (["convert", "{tmp}", "{tmp}/out.xml"], "is a folder, not a tree file"),
+    (["replay", "{tmp}", PATROL], "is a folder, not a log file"),
+    (["plot", "{tmp}/binary.bin"], "binary.bin"),
+    (["calibrate", "{tmp}/binary.bin"], "binary.bin"),
+    ([*RUN, "--signing-key", "{tmp}"], "--signing-key: {tmp} is a folder"),
+    ([*RUN, "--signing-key", "{tmp}/binary.bin"], "--signing-key"),
+    (["sitl", "--scenario", SCENARIO, "--signing-key", "{tmp}/empty.txt"], "--signing-key"),
+    ([*RADAR, "--radar-pose", "{tmp}/binary.bin"], "binary.bin"),
+    ([*RADAR, "--radar-pose", "{tmp}/huge.json"], "yaw_deg"),
+    ([*RADAR, "--radar-pose", "{tmp}"], "--radar-pose"),
+    ([*RADAR, "--radar-pose", "{tmp}/good_pose.json", "--radar-key", "{tmp}/binary.bin"], "--radar-key"),
+    (["train-detector", "--data", "{yolo}", "--init", "{tmp}/binary.bin"], "--init {tmp}/binary.bin: not detector weights"),
+    (["train-detector", "--data", "{yolo}", "--init", "{tmp}"], "--init {tmp}: is a folder"),
+    (["eval-detector", "--data", "{yolo}", "--weights", "{tmp}"], "--weights {tmp}: is a folder"),
+    # numbers past what can be computed or meant
+    (["search-trial", "--horizon", "1000"], "search-trial --horizon 1000: at most 8"),
+    (["rehearse", PATROL, "--scenario", SCENARIO, "--rate-hz", "1e9"], "--rate-hz: expected a number in (0, 1000]"),
+    ([*RUN, "--rate-hz", "1001"], "--rate-hz"),
+    ([*RUN, "--radar-time-offset", "-1e-3"], "--radar-time-offset=-1e-3"),
+    (["chase-geometry", "--target-size-m", "0", "0", "0"], "chaser-bt: --target-size-m: expected three sizes > 0 m"),
+    (["chase-geometry", "--hfov-deg", "180"], "chaser-bt: --hfov-deg: expected a field of view in (0, 180) deg"),
+    (["chase-geometry", "--width-px", "0"], "chaser-bt: --width-px: expected a width >= 1 px"),
+    # ports
+    (["rehearse", PATROL, "--scenario", SCENARIO, "--groot2", "70000"], "--groot2: expected an integer in 1-65534"),
+    (["rehearse", PATROL, "--scenario", SCENARIO, "--groot2", "-5"], "--groot2: expected an integer in 1-65534"),
+    ([*RUN, "--groot2", "0"], "--groot2"),
+    ([*RUN, "--live", "65536"], "--live"),
+    (["sitl", "--scenario", SCENARIO, "--tcp-port", "65536"], "--tcp-port"),
+    (["run", PATROL, "--connect", "tcp:127.0.0.1:99999"], "--connect: tcp:127.0.0.1:99999: port 99999 out of range"),
+    (["run", PATROL, "--connect", "udpout:127.0.0.1:0"], "port 0 out of range"),
+    ([*RUN, "--radar", "0.0.0.0:70000"], "--radar: 0.0.0.0:70000: port 70000 out of range"),
+    # campaign seeds
+    ([*CAMPAIGN, "--seeds", "1-100000000"], "--seeds: '1-100000000' names more than 100000 seeds"),
+    ([*CAMPAIGN, "--seeds", "-3-2"], "--seeds: seeds are integers >= 0: '-3-2'"),
+    ([*CAMPAIGN, "--seeds=-3-2"], "--seeds: seeds are integers >= 0: '-3-2'"),
+    ([*CAMPAIGN, "--seeds", "4294967296"], "seeds are integers in [0, 2^32)"),
 ]
 
 
 @pytest.mark.parametrize("argv,named", BAD_INPUTS, ids=lambda v: " ".join(v[:3]) if isinstance(v, list) else None)
 def test_bad_input_is_one_line_naming_it_and_exit_2(argv, named, tmp_path, capsys):
     argv = [a.format(tmp=tmp_path, yolo=_yolo_folder(tmp_path) if "{yolo}" in a else "") for a in argv]
+    named = named.format(tmp=tmp_path)
     (tmp_path / "empty").mkdir()
+    _odd_files(tmp_path)
     try:
         code = main(argv)
     except SystemExit as exc:  # argparse's own checks
@@ -101,6 +169,30 @@ def test_bad_input_is_one_line_naming_it_and_exit_2(argv, named, tmp_path, capsy
     lines = [line for line in err.splitlines() if line.startswith("chaser-bt: ")]
     assert len(lines) == 1, err
     assert named in lines[0], err
+
+
+def test_a_campaign_refuses_an_output_folder_another_campaign_is_writing(tmp_path, capsys):
+    """Two campaigns into one --out would both fly every run: the second is refused, naming the first's pid."""
+    out = tmp_path / "c"
+    out.mkdir()
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sys; from pathlib import Path; from sitl.bench.campaign import lock_out_dir\n"
+                               "with lock_out_dir(Path(sys.argv[1])):\n    print('held', flush=True); sys.stdin.read()",
+         str(out)], cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        code = main(["campaign", PATROL, "--scenarios", SCENARIO, "--seeds", "1", "--workers", "1", "--quick",
+                     "--no-camera", "--out", str(out)])
+    finally:
+        holder.communicate("", timeout=30)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert f"chaser-bt: --out {out} is in use by another campaign (pid {holder.pid})" in err
+    assert not (out / "runs").exists()  # nothing flown
+    from sitl.bench.campaign import lock_out_dir
+
+    with lock_out_dir(out):  # the holder has ended: the folder is free again
+        pass
 
 
 def test_an_unknown_option_shows_the_subcommands_usage(capsys):

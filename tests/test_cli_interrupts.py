@@ -77,6 +77,20 @@ def test_rehearse_interrupted_writes_a_partial_report_and_exits_130(sig, tmp_pat
     assert json.loads((tmp_path / "report" / "report.json").read_text())["outcome"] == "interrupted"
 
 
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
+def test_sitl_interrupted_exits_130_saying_so(sig):
+    sim = _cli("sitl", "--scenario", SCENARIO, "--tcp-port", "0", "--udp-port", "0")
+    try:
+        _wait_for_line(sim.stdout, "connect with", 60)
+        sim.send_signal(sig)
+        _, err = sim.communicate(timeout=30)
+    finally:
+        sim.kill()
+    assert sim.returncode == 130, err
+    assert "Traceback" not in err
+    assert [line for line in err.splitlines() if line.startswith("chaser-bt: ")] == ["chaser-bt: sitl: interrupted"]
+
+
 @pytest.mark.slow
 def test_campaign_stops_within_5_s_of_ctrl_c_with_workers(tmp_path):
     proc = _cli("campaign", PATROL, "--scenarios", SCENARIO, "--seeds", "1-60", "--workers", "2", "--quick",

@@ -23,12 +23,12 @@ def add_command(subparsers: argparse._SubParsersAction) -> None:
     d = ChaseInputs()
     help_ = "recommend the follow position (slant range, elevation) for a camera and a target; draw the trade-off"
     p = subparsers.add_parser("chase-geometry", help=help_, description=help_)
-    p.add_argument("--hfov-deg", type=float, default=math.degrees(d.hfov_rad), help="camera horizontal FOV, deg (default %(default).4g)")
-    p.add_argument("--vfov-deg", type=float, default=math.degrees(d.vfov_rad), help="camera vertical FOV, deg (default %(default).4g)")
+    p.add_argument("--hfov-deg", type=float, default=math.degrees(d.hfov_rad), help="camera horizontal FOV, deg, in (0, 180) (default %(default).4g)")
+    p.add_argument("--vfov-deg", type=float, default=math.degrees(d.vfov_rad), help="camera vertical FOV, deg, in (0, 180) (default %(default).4g)")
     p.add_argument("--width-px", type=int, default=d.width_px, help="image width, px (default %(default)s)")
     p.add_argument("--height-px", type=int, default=d.height_px, help="image height, px (default %(default)s)")
     p.add_argument("--target-size-m", type=float, nargs=3, metavar=("WIDTH", "DEPTH", "HEIGHT"),
-                   default=[d.target_width_m, d.target_depth_m, d.target_height_m], help=f"target box, m (default {d.target_width_m:g} {d.target_depth_m:g} {d.target_height_m:g})")
+                   default=[d.target_width_m, d.target_depth_m, d.target_height_m], help=f"target box, m, each > 0 (default {d.target_width_m:g} {d.target_depth_m:g} {d.target_height_m:g})")
     p.add_argument("--speed-h", type=float, default=d.speed_h_mps, metavar="M/S", help="target horizontal dash speed, m/s (default %(default)s)")
     p.add_argument("--speed-up", type=float, default=d.speed_up_mps, metavar="M/S", help="target climb speed, m/s (default %(default)s)")
     p.add_argument("--speed-down", type=float, default=d.speed_down_mps, metavar="M/S", help="target descent speed, m/s (default %(default)s)")
@@ -38,14 +38,23 @@ def add_command(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(handler=run)
 
 
+def _positive(v: float) -> bool:
+    return math.isfinite(v) and v > 0
+
+
 def _inputs(args: argparse.Namespace) -> ChaseInputs:
-    checks = {"--hfov-deg": 0 < args.hfov_deg < 180, "--vfov-deg": 0 < args.vfov_deg < 180,
-              "--width-px": args.width_px > 0, "--height-px": args.height_px > 0,
-              "--target-size-m": all(x > 0 for x in args.target_size_m), "--speed-h": args.speed_h > 0,
-              "--speed-up": args.speed_up > 0, "--speed-down": args.speed_down > 0, "--min-pixels": args.min_pixels > 0}
-    bad = [k for k, ok in checks.items() if not ok]
+    """The inputs; every value out of range is named with what its own field expects."""
+    positive = _positive
+    checks = {"--hfov-deg": (0 < args.hfov_deg < 180, "a field of view in (0, 180) deg"),
+              "--vfov-deg": (0 < args.vfov_deg < 180, "a field of view in (0, 180) deg"),
+              "--width-px": (args.width_px > 0, "a width >= 1 px"), "--height-px": (args.height_px > 0, "a height >= 1 px"),
+              "--target-size-m": (all(positive(x) for x in args.target_size_m), "three sizes > 0 m"),
+              "--speed-h": (positive(args.speed_h), "a speed > 0 m/s"), "--speed-up": (positive(args.speed_up), "a speed > 0 m/s"),
+              "--speed-down": (positive(args.speed_down), "a speed > 0 m/s"),
+              "--min-pixels": (positive(args.min_pixels), "a pixel count > 0")}
+    bad = [f"{k}: expected {what}" for k, (ok, what) in checks.items() if not ok]
     if bad:
-        raise ValueError(f"{', '.join(bad)}: expected positive values (FOVs below 180 deg)")
+        raise ValueError("; ".join(bad))
     w, dpt, h = args.target_size_m
     return ChaseInputs(hfov_rad=math.radians(args.hfov_deg), vfov_rad=math.radians(args.vfov_deg),
                        width_px=args.width_px, height_px=args.height_px, target_width_m=w, target_depth_m=dpt,

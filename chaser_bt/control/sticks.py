@@ -43,7 +43,7 @@ CENTRED = RcSticks(1500, 1500, 1500, 1500)
 
 @dataclass(frozen=True)
 class StickMap:
-    """The vehicle parameters the mapping depends on (ArduCopter 4.5 defaults, SI units)."""
+    """The vehicle parameters the mapping depends on (ArduCopter's defaults, SI units)."""
 
     angle_max_rad: float = math.radians(30.0)  # ANGLE_MAX 3000 cdeg
     yaw_rate_max: float = math.radians(202.5)  # PILOT_Y_RATE deg/s
@@ -59,10 +59,13 @@ class StickMap:
     def from_params(cls, params: dict[str, float]) -> StickMap:
         """Build from ArduCopter parameter values (missing ones keep the defaults)."""
         d = cls()
-        up = params.get("PILOT_SPEED_UP", d.climb_up_max * 100.0) * 0.01
-        dn = params.get("PILOT_SPEED_DN", 0.0) * 0.01 or up
+        # ArduCopter 4.7 renamed three of them, in SI units: ATC_ANGLE_MAX (deg), PILOT_SPD_UP/DN (m/s).
+        up = params["PILOT_SPD_UP"] if "PILOT_SPD_UP" in params else params.get("PILOT_SPEED_UP", d.climb_up_max * 100.0) * 0.01
+        dn = (params["PILOT_SPD_DN"] if "PILOT_SPD_DN" in params else params.get("PILOT_SPEED_DN", 0.0) * 0.01) or up
+        angle_deg = params["ATC_ANGLE_MAX"] if "ATC_ANGLE_MAX" in params else params.get(
+            "ANGLE_MAX", math.degrees(d.angle_max_rad) * 100.0) * 0.01
         return cls(
-            angle_max_rad=math.radians(params.get("ANGLE_MAX", math.degrees(d.angle_max_rad) * 100.0) * 0.01),
+            angle_max_rad=math.radians(angle_deg),
             yaw_rate_max=math.radians(params.get("PILOT_Y_RATE", math.degrees(d.yaw_rate_max))),
             climb_up_max=up, climb_down_max=dn,
             roll_dz=params.get("RC1_DZ", d.roll_dz), pitch_dz=params.get("RC2_DZ", d.pitch_dz),

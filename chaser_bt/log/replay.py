@@ -37,7 +37,8 @@ from chaser_bt.log.trace import BeliefSnapshot, FlightTrace, TraceEvent
 from chaser_bt.mission.outcome import PHASE_KEY as _PHASE_KEY
 from chaser_bt.mission.runner import MissionRunner, StatusChange
 from chaser_bt.tree import MissionTree, reset_blackboard
-from chaser_bt.vehicle import LinkConfig, VehicleError, VehicleLink
+from chaser_bt.vehicle import CommandEnvelope, LinkConfig, VehicleError, VehicleLink
+from chaser_bt.vehicle.telemetry_check import TelemetryLimits
 from chaser_bt.vehicle.pipe import byte_pipe
 from chaser_bt.vision.frame_source import Frame
 
@@ -98,7 +99,7 @@ def read_log(path: str | Path) -> FlightLog:
     """
     path = Path(path)
     if not path.is_file():
-        raise LogError(f"{path}: no such log file")
+        raise LogError(f"{path}: is a folder, not a log file" if path.is_dir() else f"{path}: no such log file")
     schemas: dict[int, Schema] = {}
     channels: dict[int, Channel] = {}
     metadata: dict[str, dict[str, str]] = {}
@@ -264,6 +265,9 @@ def _link_config(meta: dict[str, str]) -> LinkConfig:
     if raw.get("origin") is not None:
         raw["origin"] = GeoPoint(**raw["origin"])
     raw["stream_rates_hz"] = dict(raw.get("stream_rates_hz", {}))
+    for name, kind in (("envelope", CommandEnvelope), ("telemetry_limits", TelemetryLimits)):
+        if isinstance(raw.get(name), dict):  # the flight's own limits, so a replay drops what it dropped
+            raw[name] = kind(**raw[name])
     return LinkConfig(**raw)
 
 

@@ -101,16 +101,28 @@ def load_radar_pose(path: Path) -> tuple[GeoPoint, tuple[float, float, float]]:
         raise FlightSensorError(f"{path}:{exc.lineno}: not JSON ({exc.msg})") from None
     except UnicodeDecodeError:
         raise FlightSensorError(f"{path}: not a text file (expected the JSON of `chaser-bt calibrate --json`)") from None
+    except ValueError as exc:  # an integer of thousands of digits: int() refuses it
+        raise FlightSensorError(f"{path}: not a radar pose: {str(exc).split(':')[0]}") from None
+    except RecursionError:
+        raise FlightSensorError(f"{path}: not a radar pose: JSON nested too deeply") from None
     if not isinstance(data, dict):
         raise FlightSensorError(f"{path}: expected a JSON object with {', '.join(_POSE_FIELDS)}")
     values = {}
     for name in _POSE_FIELDS:
         v = data.get(name, 0.0 if name in ("alt_m", "pitch_deg", "roll_deg") else None)
-        if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not _finite(v):
             raise FlightSensorError(f"{path}: field {name!r}: expected a finite number, got {v!r}")
         values[name] = float(v)
     point = GeoPoint(values["lat_deg"], values["lon_deg"], values["alt_m"])
     return point, tuple(math.radians(values[k]) for k in ("yaw_deg", "pitch_deg", "roll_deg"))
+
+
+def _finite(v: float) -> bool:
+    """``math.isfinite``, false (not OverflowError) for an integer too large for a float."""
+    try:
+        return math.isfinite(v)
+    except OverflowError:
+        return False
 
 
 def _host_port(text: str) -> tuple[str, int]:

@@ -24,6 +24,7 @@ class SafetySetting:
     name: str
     ok: Callable[[float], bool]
     problem: str
+    renamed: tuple[tuple[str, float], ...] = ()  # newer ArduCopter names, and the factor to this one's units
 
 
 SAFETY_SETTINGS: tuple[SafetySetting, ...] = (
@@ -37,7 +38,8 @@ SAFETY_SETTINGS: tuple[SafetySetting, ...] = (
     SafetySetting("FENCE_ENABLE", lambda v: v != 0,
                   "no geofence: nothing on the aircraft bounds where a wrong target can send it (set FENCE_ENABLE 1)"),
     SafetySetting("RTL_ALT", lambda v: v == 0 or v >= 1500,
-                  "RTL_ALT under 15 m: the return flies home low, through trees and masts (cm; ArduCopter's default is 1500)"),
+                  "RTL_ALT under 15 m: the return flies home low, through trees and masts (cm; ArduCopter's default is 1500)",
+                  renamed=(("RTL_ALT_M", 100.0),)),  # ArduCopter 4.7+: metres
 )
 
 
@@ -54,10 +56,22 @@ def safety_warnings(params: dict[str, float], settings: tuple[SafetySetting, ...
 
 
 def read_safety_settings(link: Any, timeout_s: float = 5.0, settings: tuple[SafetySetting, ...] = SAFETY_SETTINGS) -> dict[str, float]:
-    """Ask the vehicle for each setting at once and wait (bounded) for the answers; what arrived."""
-    commands = [link.request_param(s.name) for s in settings]
+    """Ask the vehicle for each setting at once (under each of its names) and wait (bounded) for the
+    answers; what arrived, in each setting's own name and units."""
+    names = [(s.name, *(n for n, _ in s.renamed)) for s in settings]
+    commands = [link.request_param(name) for group in names for name in group]
+
+    def answered() -> bool:  # each setting under one of its names (a vehicle knows one), or nothing more to come
+        return all(any(n in link.params for n in group) for group in names) or all(c.done for c in commands)
+
     try:
-        link.wait(lambda: all(c.done for c in commands), timeout_s)
+        link.wait(answered, timeout_s)
     except VehicleError:  # some never answered: they are reported unread
         pass
-    return {s.name: link.params[s.name] for s in settings if s.name in link.params}
+    found = {}
+    for s in settings:
+        for name, factor in ((s.name, 1.0), *s.renamed):
+            if name in link.params:
+                found[s.name] = link.params[name] * factor
+                break
+    return found

@@ -54,7 +54,7 @@ def _convert(args: argparse.Namespace) -> int:
 
     source, target = args.source, args.target
     if not source.is_file():
-        print(f"chaser-bt: {source}: no such file", file=sys.stderr)
+        print(f"chaser-bt: {source}: {'is a folder, not a tree file' if source.is_dir() else 'no such file'}", file=sys.stderr)
         return EXIT_BAD_INPUT
     problems = validate_tree(source)
     if problems:  # as `chaser-bt validate` reports them

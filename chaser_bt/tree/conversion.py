@@ -132,7 +132,8 @@ def converted_file(source: str | Path, target: str | Path, registry: Registry | 
     try:
         text = source.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as e:
-        raise TreeError([Problem(str(source), 1, 1, f"cannot read tree file: {getattr(e, 'strerror', None) or e}")])
+        reason = f"byte {e.start} is not UTF-8 text (a binary file?)" if isinstance(e, UnicodeDecodeError) else e.strerror or e
+        raise TreeError([Problem(str(source), 1, 1, f"cannot read tree file: {reason}")])
     return convert_text(
         text, str(source), format_of(target), registry, format_of(source), base_dir=source.parent, out_dir=target.parent
     )

@@ -44,6 +44,8 @@ def read_text(path: Path, where: Location | None = None) -> tuple[str | None, li
         return path.read_text(encoding="utf-8"), []
     except (OSError, UnicodeDecodeError) as e:
         reason = getattr(e, "strerror", None) or str(e)
+        if isinstance(e, UnicodeDecodeError):
+            reason = f"byte {e.start} is not UTF-8 text (a binary file?)"
         if where is None:
             return None, [Problem(str(path), 1, 1, f"cannot read tree file: {reason}")]
         return None, [Problem(where.file, where.line, where.column, f"cannot read included file {str(path)!r}: {reason}")]

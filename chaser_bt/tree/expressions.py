@@ -151,12 +151,17 @@ def _tokenize(text: str) -> list[tuple[str, Any, int]]:
         value: Any = match.group(kind)
         column = match.start(kind) + 1
         if kind == "number":
+            if len(value) > 400:  # longer than any float (int() refuses past 4300 digits anyway)
+                raise ExpressionError(f"number at column {column} has {len(value)} digits: too large")
             if value[:2] in ("0x", "0X"):
                 value = int(value, 16)
             elif re.fullmatch(r"\d+", value):
                 value = int(value)
             else:
                 value = float(value)
+                if not math.isfinite(value):  # 1e400: a literal in a tree is a finite number (chaser_bt.tree.ports)
+                    raise ExpressionError(f"number {match.group(kind)!r} at column {column} is too large for a float "
+                                          f"in {text!r}")
         elif kind == "string":
             value = value[1:-1]
         elif kind == "name" and value in ("true", "false"):

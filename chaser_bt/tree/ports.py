@@ -14,7 +14,9 @@ exactly as in BehaviorTree.CPP (``{@key}`` is the root blackboard from inside a 
 A port may also bound its values (``minimum``, ``maximum``, ``above`` for a strict lower bound;
 on a list port, bounds apply to each item) and fix a list's ``length``. The validator checks every
 literal against them, so a tree that validates does not fail in the air on a negative duration or
-a two-number waypoint; a default must satisfy its own port's bounds.
+a two-number waypoint; a default must satisfy its own port's bounds. A number must be finite
+(``inf``, ``1e400`` and ``nan`` are refused) on every port, unless the port says ``infinite=True``
+(then ``inf`` is allowed, ``nan`` still not).
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ __all__ = [
     "output_port",
     "LiteralError",
     "coerce_literal",
+    "finite_violation",
     "literal_from_text",
     "literal_text",
     "has_literal_form",
@@ -66,6 +69,7 @@ class Port(py_trees.ports.PortInformation):
         maximum: the greatest value allowed.
         above: values must be strictly greater than this (an altitude: ``above=0``).
         length: a list port's exact number of items (a 3-vector: ``length=3``).
+        infinite: ``inf`` (and ``-inf``) are values this port takes; by default a number must be finite.
     """
 
     default_key: str | None = None
@@ -73,6 +77,7 @@ class Port(py_trees.ports.PortInformation):
     maximum: float | None = None
     above: float | None = None
     length: int | None = None
+    infinite: bool = False
 
     @property
     def constraint(self) -> str:
@@ -100,6 +105,8 @@ class Port(py_trees.ports.PortInformation):
             items = value
         else:
             items = [value]
+        if not self.infinite and any(_is_number(item) and math.isinf(item) for item in items):
+            return finite_violation(value, allow_infinite=False)  # its own words: "too large for a float"
         for item in items:
             if not _is_number(item):
                 continue
@@ -109,7 +116,7 @@ class Port(py_trees.ports.PortInformation):
                 or (self.above is not None and not item > self.above)
             ):
                 return f"must be {self.constraint}, got {_number(item) if item is value else repr(value)}"
-        return None
+        return finite_violation(value, allow_infinite=self.infinite)
 
     @property
     def satisfied_without_wiring(self) -> bool:
@@ -128,10 +135,12 @@ def input_port(
     maximum: float | None = None,
     above: float | None = None,
     length: int | None = None,
+    infinite: bool = False,
 ) -> Port:
     """Declare an input port; a default is coerced like a tree literal (``[0, 0, 0]`` for ``list[float]``).
 
-    ``minimum``, ``maximum``, ``above`` and ``length`` bound the port's values (see :class:`Port`).
+    ``minimum``, ``maximum``, ``above`` and ``length`` bound the port's values, ``infinite`` lets it
+    take ``inf`` (see :class:`Port`).
 
     Raises:
         ValueError: the default breaks the port's own bounds.
@@ -148,6 +157,7 @@ def input_port(
         maximum=maximum,
         above=above,
         length=length,
+        infinite=infinite,
     )
     problem = port.violation(default) if default is not None else None
     if problem is not None:
@@ -157,6 +167,25 @@ def input_port(
 
 def _is_number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def finite_violation(value: Any, allow_infinite: bool = False) -> str | None:
+    """Why ``value`` (a literal, or a list of them, at any depth) is not a finite number where it is one, or None.
+
+    ``nan`` is never a value; ``inf`` (``1e400`` reads as inf) only where ``allow_infinite``.
+    """
+    if isinstance(value, (list, tuple)):
+        for item in value:
+            problem = finite_violation(item, allow_infinite)
+            if problem is not None:
+                return f"{problem} (in {value!r})"
+        return None
+    if isinstance(value, float) and not math.isfinite(value):
+        if math.isnan(value):
+            return "must be a number, got nan"
+        if not allow_infinite:
+            return f"must be a finite number, got {value} (a value too large for a float reads as inf)"
+    return None
 
 
 def _number(value: float) -> str:
@@ -245,7 +274,10 @@ def coerce_literal(value: Any, data_type: Any) -> Any:
         return _coerce_list(value, data_type)
     if data_type is float:
         if isinstance(value, (int, float)) and not isinstance(value, bool):
-            return float(value)
+            try:
+                return float(value)
+            except OverflowError:  # an int past the float range: inf, which the port's finiteness check refuses
+                return math.inf if value > 0 else -math.inf
     elif data_type is int:
         if isinstance(value, int) and not isinstance(value, bool):
             return value

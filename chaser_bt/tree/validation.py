@@ -31,6 +31,7 @@ from chaser_bt.tree.ports import (
     LiteralError,
     Port,
     coerce_literal,
+    finite_violation,
     is_reference_text,
     literal_from_text,
     parse_reference,
@@ -421,7 +422,7 @@ class _Resolver:
         except LiteralError as e:
             self.problem(location, f"port '{port}' of {spec.node_id}: {e}")
             return
-        violation = declaration.violation(typed) if isinstance(declaration, Port) else None
+        violation = declaration.violation(typed) if isinstance(declaration, Port) else finite_violation(typed)
         if violation is not None:
             self.problem(location, f"port '{port}' of {spec.node_id} {violation}")
             return

@@ -86,6 +86,9 @@ class _Parser:
         except yaml.YAMLError as e:
             self.problem(node, f"cannot read value: {getattr(e, 'problem', None) or e}")
             return False, None
+        except ValueError as e:  # an integer of thousands of digits: int() refuses it
+            self.problem(node, f"cannot read value: {str(e).split(':')[0]}")
+            return False, None
         except RecursionError:
             self.problem(node, "cannot read value: nested too deeply")
             return False, None

@@ -530,14 +530,16 @@ class VehicleLink:
         GUIDED: hold the current position (zero velocity if it is not known yet); STABILIZE/ALT_HOLD:
         centred sticks; LOITER, BRAKE, RTL, LAND and the rest already fly themselves: nothing.
         Disarmed: nothing either; a centred-throttle override left on a vehicle on the ground would
-        wait for whoever arms it next. Returns whether a command was sent.
+        wait for whoever arms it next. With a telemetry fault none of that can be believed: zero
+        velocity, which a GUIDED aircraft holds and any other mode ignores. Returns whether a command
+        was sent.
         """
         s = self.state
-        if not s.armed:
-            return False
-        if s.telemetry_fault:  # where it "is" cannot be believed: stop it where it really is
+        if s.telemetry_fault:  # what it says (armed, mode, where) cannot be believed: stop it where it really is
             self.velocity_enu((0.0, 0.0, 0.0))
             return True
+        if not s.armed:
+            return False
         if s.mode == "GUIDED":
             if self.frame is not None and np.all(np.isfinite(s.position_enu)):
                 self._goto_enu(s.position_enu, s.yaw_enu_rad if math.isfinite(s.yaw_enu_rad) else None)

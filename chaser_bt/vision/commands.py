@@ -105,6 +105,8 @@ def _train(args: argparse.Namespace) -> int:
         print(f"chaser-bt: --data {args.data}: no images/ folder (YOLO layout expected)", file=sys.stderr)
         return 2
     try:
+        if args.init:  # before training starts: a wrong --init file is bad input, not a traceback
+            _check_weights(args.init, "--init")
         out = train_detector(TrainConfig(args.data, args.out, steps=args.steps, batch=args.batch, seed=args.seed, threads=args.threads,
                                          lr=args.lr, init_weights=args.init or "", widths=args.widths, small_box_px=args.small_box_px,
                                          small_weight=args.small_weight, obj_iou=args.obj_iou, mixup=args.mixup,
@@ -290,7 +292,7 @@ def _check_weights(path: str | Path, flag: str = "--weights") -> None:
     from chaser_bt.vision.detector.inference import load_model
 
     if not Path(path).is_file():
-        raise ValueError(f"{flag} {path}: no such file")
+        raise ValueError(f"{flag} {path}: {'is a folder, not a file' if Path(path).is_dir() else 'no such file'}")
     try:
         load_model(path)
     except (pickle.UnpicklingError, zipfile.BadZipFile, EOFError, KeyError, TypeError, RuntimeError, AttributeError) as exc:

@@ -26,7 +26,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
 
-__all__ = ["ARDUPILOT_ENV", "ArduCopterProcess", "ArduPilotMissing", "find_ardupilot", "mavlink_port", "rc_port"]
+__all__ = ["ARDUPILOT_ENV", "ArduCopterProcess", "ArduPilotMissing", "RENAMED_PARAMS", "find_ardupilot", "mavlink_port", "rc_port",
+           "with_renamed"]
 
 log = logging.getLogger(__name__)
 
@@ -86,6 +87,32 @@ def _die_with_parent() -> None:
         ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
 
 
+#: ArduCopter 4.7 moved these parameters to new names in SI units: (new name, factor from the old
+#: unit), from its conversion tables (AC_WPNav, AC_Loiter, AC_AttitudeControl, mode_rtl, Parameters).
+#: The defaults file carries both; a build ignores the name it does not know.
+RENAMED_PARAMS: Mapping[str, tuple[str, float]] = {
+    "WPNAV_SPEED": ("WP_SPD", 0.01), "WPNAV_RADIUS": ("WP_RADIUS_M", 0.01), "WPNAV_SPEED_UP": ("WP_SPD_UP", 0.01),
+    "WPNAV_SPEED_DN": ("WP_SPD_DN", 0.01), "WPNAV_ACCEL": ("WP_ACC", 0.01), "WPNAV_ACCEL_Z": ("WP_ACC_Z", 0.01),
+    "WPNAV_ACCEL_C": ("WP_ACC_CNR", 0.01), "RTL_ALT": ("RTL_ALT_M", 0.01), "RTL_SPEED": ("RTL_SPEED_MS", 0.01),
+    "RTL_ALT_FINAL": ("RTL_ALT_FINAL_M", 0.01), "RTL_CLIMB_MIN": ("RTL_CLIMB_MIN_M", 0.01),
+    "ANGLE_MAX": ("ATC_ANGLE_MAX", 0.01), "PILOT_SPEED_UP": ("PILOT_SPD_UP", 0.01),
+    "PILOT_SPEED_DN": ("PILOT_SPD_DN", 0.01), "PILOT_ACCEL_Z": ("PILOT_ACC_Z", 0.01),
+    "PILOT_TKOFF_ALT": ("PILOT_TKO_ALT_M", 0.01), "LOIT_SPEED": ("LOIT_SPEED_MS", 0.01),
+    "LOIT_ACC_MAX": ("LOIT_ACC_MAX_M", 0.01), "LOIT_BRK_ACCEL": ("LOIT_BRK_ACC_M", 0.01),
+    "LOIT_BRK_JERK": ("LOIT_BRK_JRK_M", 0.01),
+}
+
+
+def with_renamed(params: Mapping[str, float]) -> dict[str, float]:
+    """``params`` (ArduCopter 4.5/4.6 names) plus each renamed one under its 4.7+ name and unit."""
+    out = dict(params)
+    for name, value in params.items():
+        if name in RENAMED_PARAMS:
+            new, factor = RENAMED_PARAMS[name]
+            out.setdefault(new, float(value) * factor)
+    return out
+
+
 @dataclass
 class ArduCopterProcess:
     """One ``arducopter`` started with ``--model JSON``: it waits for our physics from its first step.
@@ -112,7 +139,7 @@ class ArduCopterProcess:
         defaults = [str(self.folder / "copter.parm")]
         if self.params:
             extra = self.workdir / "chaser_bt.parm"
-            extra.write_text("".join(f"{k} {float(v):g}\n" for k, v in self.params.items()))
+            extra.write_text("".join(f"{k} {float(v):g}\n" for k, v in with_renamed(self.params).items()))
             defaults.append(str(extra))
         lat, lon, alt, hdg = self.home
         cmd = [str(self.folder / "arducopter"), "-w", "-I", str(self.instance), "--model", "JSON:127.0.0.1",
@@ -120,8 +147,11 @@ class ArduCopterProcess:
                "--home", f"{lat:.8f},{lon:.8f},{alt:.3f},{hdg:g}"]
         log.info("starting ArduCopter SITL: %s", " ".join(cmd))
         with open(self.workdir / "sitl.log", "wb") as out:
-            self.proc = subprocess.Popen(cmd, cwd=self.workdir, stdout=out, stderr=subprocess.STDOUT,
-                                         stdin=subprocess.DEVNULL, preexec_fn=_die_with_parent)
+            try:
+                self.proc = subprocess.Popen(cmd, cwd=self.workdir, stdout=out, stderr=subprocess.STDOUT,
+                                             stdin=subprocess.DEVNULL, preexec_fn=_die_with_parent)
+            except OSError as exc:  # not a program this machine runs (another platform's build, a text file)
+                raise ArduPilotMissing(f"{self.folder / 'arducopter'} cannot be run: {exc.strerror or exc}") from None
 
     @property
     def url(self) -> str:

@@ -13,10 +13,14 @@ needs about 40 s of its own time for that. Before it, the vehicle stands on the 
 nothing else moves. The mission's clock must count from the same moment (:attr:`epoch_s` is the
 physics time it was called at).
 
-What is not modelled on this path (the built-in simulator has them): the scenario's ``faults``
-(link loss, GPS, battery), its ``boot`` times (ArduCopter boots as it does), the intruders' own
-MAVLink (they have their own radios: :meth:`intruder_telemetry` hands their bytes to whoever
-listens) and our battery model (ArduCopter's SITL reports its own).
+The scenario's ``faults`` and ``ground_station`` mode changes are struck on the world's clock by
+a second ground station on ArduCopter's SERIAL1 (:class:`~sitl.ardupilot.faults.FaultInjector`:
+a forced disarm, SIM_GPS1_ENABLE, SIM_BATT_VOLTAGE, SIM_RC_FAIL with the pilot's RC silent, a mode
+change) and, for ``link_loss``, by a relay on the mission's link (:class:`~sitl.ardupilot.faults.LinkRelay`).
+What is not modelled on this path (the built-in simulator has them): the scenario's ``boot`` times
+(ArduCopter boots as it does), the intruders' own MAVLink (they have their own radios:
+:meth:`intruder_telemetry` hands their bytes to whoever listens) and our battery model (ArduCopter's
+SITL reports its own).
 """
 
 from __future__ import annotations
@@ -32,7 +36,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from chaser_bt.geo import enu_to_ned, ned_to_enu
-from sitl.ardupilot.process import ArduCopterProcess, find_ardupilot, instance_free, rc_port
+from sitl.ardupilot.faults import SERIAL1_OFFSET, FaultInjector, LinkRelay
+from sitl.ardupilot.process import ArduCopterProcess, find_ardupilot, instance_free, mavlink_port, rc_port
 from sitl.vehicle.autopilot import TruthState
 from sitl.vehicle.json_backend import JsonPhysicsServer, SensorFrame, ServoPacket
 from sitl.vehicle.physics import PHYSICS_DT, NormalStream, Wind
@@ -139,6 +144,11 @@ class ArduPilotSimulator(InSurroundings):
                                                             self.scenario.home_heading_deg), params)
         self._rc_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._rc_addr = ("127.0.0.1", rc_port(instance))
+        faults, events = self.scenario.faults, self.scenario.ground_station
+        self.faults = FaultInjector(faults, events, ("127.0.0.1", mavlink_port(instance) + SERIAL1_OFFSET),
+                                    target_sysid=int(params.get("SYSID_THISMAV", 1))) if faults or events else None
+        self._link_faults = tuple(f for f in faults if f.kind == "link_loss")
+        self.relay = LinkRelay(("127.0.0.1", mavlink_port(instance))) if self._link_faults else None
         self.process.start()
         if not self.process.alive():
             self.close()
@@ -157,8 +167,13 @@ class ArduPilotSimulator(InSurroundings):
     # -- what a rehearsal reads, as from the built-in Simulator -----------------------------------
     @property
     def url(self) -> str:
-        """The mission's connection string: ArduCopter's SERIAL0."""
-        return self.process.url
+        """The mission's connection string: ArduCopter's SERIAL0 (through :attr:`relay` when a ``link_loss`` is scripted)."""
+        return self.process.url if self.relay is None else self.relay.url
+
+    @property
+    def link_up(self) -> bool:
+        """Whether the mission's radio carries bytes now (scripted ``link_loss`` faults, on the world's clock)."""
+        return self.epoch_s is None or not any(f.active(self.time_s) for f in self._link_faults)
 
     @property
     def physics_time_s(self) -> float:
@@ -196,6 +211,8 @@ class ArduPilotSimulator(InSurroundings):
             ArduPilotStopped: ArduCopter exited, or sent no frame within ``timeout_s`` of wall time.
         """
         self._step_wind()
+        if self.relay is not None:
+            self.relay.pump(self.link_up)  # the mission's last commands, before ArduCopter's next frames
         server = self.server
         until = server.time_s + self.dt - 1e-6
         while server.time_s < until:
@@ -204,6 +221,10 @@ class ArduPilotSimulator(InSurroundings):
                 raise ArduPilotStopped(f"ArduCopter {why}:\n{self.process.log_tail()}")
         if self.epoch_s is not None:
             self.surroundings.step(self.time_s, self.dt, lambda: self.truth)
+            if self.faults is not None:
+                self.faults.step(self.time_s)
+        if self.relay is not None:
+            self.relay.pump(self.link_up)  # its telemetry, before the mission's next poll
         self._send_rc()
 
     def run_until(self, t_s: float) -> None:
@@ -216,6 +237,8 @@ class ArduPilotSimulator(InSurroundings):
         return self.body.physics(packet, t_s)
 
     def _send_rc(self) -> None:
+        if self.faults is not None and self.epoch_s is not None and self.faults.rc_silent(self.time_s):
+            return  # an rc_loss: the transmitter is silent
         pwm = pilot_rc(self.scenario.pilot, self.time_s, airborne=not self.body.on_ground)
         self._rc_sock.sendto(_RC_PACKET.pack(*pwm), self._rc_addr)
 
@@ -225,6 +248,10 @@ class ArduPilotSimulator(InSurroundings):
 
     def close(self) -> None:
         """Stop ArduCopter and release the ports."""
+        if self.faults is not None:
+            self.faults.close()
+        if self.relay is not None:
+            self.relay.close()
         self.process.stop()
         self.server.close()
         self._rc_sock.close()

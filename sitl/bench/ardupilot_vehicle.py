@@ -14,6 +14,11 @@ run's figures do not include the boot.
 
 The intruders' own MAVLink reaches the mission on a second radio (:meth:`attach_target_telemetry`),
 not through ArduCopter.
+
+The scenario's faults and ground-station mode changes strike on the world's clock from a second
+ground station on ArduCopter's SERIAL1 (:mod:`sitl.ardupilot.faults`, held by the simulator, so
+they go on while a rehearsal flies out a failsafe without the mission); with a ``link_loss``
+scripted, the link opened here runs through the simulator's relay (``sim.url`` names it).
 """
 
 from __future__ import annotations

@@ -20,6 +20,7 @@ must be true.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import hashlib
 import inspect
@@ -28,6 +29,7 @@ import logging
 import math
 import multiprocessing
 import os
+import re
 import signal
 import socket
 import sys
@@ -57,6 +59,7 @@ __all__ = [
     "find_scenarios",
     "false_success",
     "followed_s",
+    "lock_out_dir",
     "parse_seeds",
     "run_campaign",
     "run_one",
@@ -84,6 +87,14 @@ SETTLE_NOTE = "judged 10 s of simulated time after the mission stopped"
 
 _OK_OUTCOMES = ("landed", "following", "completed")
 
+#: The most seeds one ``--seeds`` may name: each is a whole rehearsal (seconds to minutes), so more
+#: would take years, and the list of runs alone would grow without bound (``1-100000000``).
+MAX_SEEDS = 100_000
+#: Seeds are the simulator's, as ``rehearse --seed`` takes them: integers in [0, 2^32).
+SEED_LIMIT = 2**32
+#: In the output folder: held locked (flock) by the campaign writing there; it names its pid.
+LOCK_FILE = ".campaign.lock"
+
 
 class CampaignError(ValueError):
     """Bad campaign input (seeds, paths, tree, scenario); the message names what and where."""
@@ -96,25 +107,34 @@ def parse_seeds(text: str) -> list[int]:
     """Seeds from ``"1-50"``, ``"1,3,7"`` or ``"1-10,20"``: ascending, each once.
 
     Raises:
-        CampaignError: on an empty item, a non-integer, a negative seed, a range whose end is
-            below its start (naming the item), or a seed named twice.
+        CampaignError: on an empty item, a non-integer, a negative seed, a seed past 2^32 - 1, a
+            range whose end is below its start (naming the item), a seed named twice, or more
+            than :data:`MAX_SEEDS` seeds in all.
     """
     seeds: set[int] = set()
     repeated: set[int] = set()
     if not text.strip():
         raise CampaignError("--seeds: empty; expected e.g. 1-50, 1,3,7 or 1-10,20")
+    count = 0
     for item in text.split(","):
         item = item.strip()
-        lo, sep, hi = item.partition("-")
-        try:
-            a = int(lo)
-            b = int(hi) if sep else a
-        except ValueError:
-            raise CampaignError(f"--seeds: {item!r} is not a seed or a range N-M of non-negative integers") from None
-        if a < 0 or b < 0:
-            raise CampaignError(f"--seeds: {item!r}: seeds are non-negative")
+        match = re.fullmatch(r"([0-9]+)(?:-([0-9]+))?", item)
+        if match is None:
+            if item.startswith("-") or re.search(r"(^|-)-[0-9]", item):
+                raise CampaignError(f"--seeds: seeds are integers >= 0: {item!r} names a negative one")
+            raise CampaignError(f"--seeds: {item!r} is not a seed or a range N-M of integers >= 0 (e.g. 1-50, 1,3,7)")
+        if any(len(digits) > 10 for digits in match.groups(default="")):
+            raise CampaignError(f"--seeds: {item!r}: seeds are integers in [0, 2^32)")
+        a = int(match[1])
+        b = int(match[2]) if match[2] is not None else a
+        if max(a, b) >= SEED_LIMIT:
+            raise CampaignError(f"--seeds: {item!r}: seeds are integers in [0, 2^32)")
         if b < a:
             raise CampaignError(f"--seeds: {item!r}: the range ends below its start")
+        count += b - a + 1
+        if count > MAX_SEEDS:
+            raise CampaignError(f"--seeds: {text!r} names more than {MAX_SEEDS} seeds; each is a whole rehearsal: "
+                                "split the campaign")
         repeated.update(seeds.intersection(range(a, b + 1)))
         seeds.update(range(a, b + 1))
     if repeated:
@@ -133,6 +153,52 @@ def find_scenarios(path: str | Path) -> list[Path]:
             raise CampaignError(f"--scenarios {path}: no .yaml scenario files in this folder")
         return files
     raise CampaignError(f"--scenarios {path}: no such file or folder")
+
+
+def _seed_list(text: str) -> list[int]:
+    """``--seeds`` for argparse: :func:`parse_seeds`, its error as argparse's (``argument --seeds: ...``)."""
+    try:
+        return parse_seeds(text)
+    except CampaignError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--seeds: ")) from None
+
+
+@contextlib.contextmanager
+def lock_out_dir(out: Path) -> Iterator[None]:
+    """Hold ``out`` for one campaign: an exclusive ``flock`` on ``out/.campaign.lock``, which names our pid.
+
+    Two campaigns writing into one folder would both fly every run and overwrite each other's results
+    and report; the second one is refused.
+
+    Raises:
+        CampaignError: another campaign holds the folder (naming its pid), or the lock file cannot be opened.
+    """
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: no lock
+        yield
+        return
+    path = Path(out) / LOCK_FILE
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise CampaignError(f"--out {out}: cannot open {path.name} ({exc.strerror or exc})") from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "?"
+            raise CampaignError(f"--out {out} is in use by another campaign (pid {holder}); wait for it to end, "
+                                "or give another --out") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        try:
+            yield
+        finally:
+            os.ftruncate(fd, 0)
+            fcntl.flock(fd, fcntl.LOCK_UN)
+    finally:
+        os.close(fd)
 
 
 def _digest(*paths: Path) -> str:
@@ -527,6 +593,8 @@ def _check_inputs(config: CampaignConfig) -> None:
         raise CampaignError(f"--workers {config.workers}: need at least 1")
     if not config.seeds:
         raise CampaignError("--seeds: no seeds")
+    if config.tree.is_dir():
+        raise CampaignError(f"{config.tree}: is a folder, not a tree file")
     if not config.tree.is_file():
         raise CampaignError(f"{config.tree}: no such tree file")
     try:
@@ -562,12 +630,20 @@ def run_campaign(
         report: write ``campaign.json``, ``campaign.md`` and the figures at the end.
 
     Raises:
-        CampaignError: bad input (nothing is flown).
+        CampaignError: bad input, or another campaign is writing into ``config.out_dir`` (nothing is flown).
         KeyboardInterrupt: passed on after the runs finished so far are stored (re-run to resume).
     """
     _check_inputs(config)
     out = config.out_dir
     out.mkdir(parents=True, exist_ok=True)
+    with lock_out_dir(out):
+        return _run_locked(config, runner, on_start, on_result, report)
+
+
+def _run_locked(config: CampaignConfig, runner: Callable[[RunSpec], dict], on_start: Callable[[int, int], None] | None,
+                on_result: Callable[[int, int, dict], None] | None, report: bool) -> CampaignResult:
+    """:func:`run_campaign` once the output folder is ours."""
+    out = config.out_dir
     specs = config.specs()
     retry = not config.report_only
     stored = {} if config.fresh else {s.key: r for s in specs if (r := _load_row(out, s, retry)) is not None}
@@ -814,7 +890,9 @@ def add_command(subparsers) -> None:
                               description=__doc__.splitlines()[0])
     p.add_argument("tree", type=Path, metavar="TREE", help="mission tree file: YAML (docs/trees.md) or BT.CPP v4 XML")
     p.add_argument("--scenarios", required=True, type=Path, metavar="DIR_OR_FILE", help="a scenario file or a folder of them (required)")
-    p.add_argument("--seeds", default="1-50", metavar="LIST", help="e.g. 1-50, 1,3,7 or 1-10,20; each seed once (default 1-50)")
+    p.add_argument("--seeds", type=_seed_list, default="1-50", metavar="LIST",
+                   help=f"e.g. 1-50, 1,3,7 or 1-10,20; each seed once, integers >= 0, at most {MAX_SEEDS} of them "
+                        "(default 1-50)")
     p.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1, metavar="N",
                    help="worker processes (default: one per core)")
     p.add_argument("--out", required=True, type=output_dir, metavar="DIR",
@@ -838,7 +916,7 @@ def add_command(subparsers) -> None:
 def _campaign_command(args: argparse.Namespace) -> int:
     try:
         config = CampaignConfig(
-            tree=args.tree, scenarios=find_scenarios(args.scenarios), seeds=parse_seeds(args.seeds), out_dir=args.out,
+            tree=args.tree, scenarios=find_scenarios(args.scenarios), seeds=args.seeds, out_dir=args.out,
             workers=args.workers, ray_address=args.ray, camera=not args.no_camera, quick=args.quick, fresh=args.fresh,
             report_only=args.report_only,
             success=SuccessRule(min_followed_s=args.min_followed_s),

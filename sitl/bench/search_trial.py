@@ -273,11 +273,22 @@ def summary(trial: SearchTrial) -> dict:
     }
 
 
+#: The longest ``--horizon``. The exact planner searches the 26^h paths of h moves by branch and bound:
+#: on the trial's 40 x 40 x 10 grid one plan takes about 0.02 s at h = 5, 0.4 s at h = 6, 1 s at
+#: h = 7 and 8 s at h = 8 (peaked belief, one core), about 8x more per move; its tables grow as
+#: (2h + 1)^3 (h = 1000 asks numpy for tens of GiB). Past 8 a plan never ends in a flight's time.
+MAX_HORIZON = 8
+
+
 def run_search_trial(args: argparse.Namespace) -> int:
     """``chaser-bt search-trial``: one search-only run; 0 when the search ran its course, 1 if not, 2 on bad input."""
     if args.horizon < 1 or not 0.0 < args.gamma <= 1.0 or not args.search_s > 0:
         print(f"chaser-bt: search-trial needs --horizon >= 1, 0 < --gamma <= 1 and --search-s > 0 (got {args.horizon}, "
               f"{args.gamma}, {args.search_s})", file=sys.stderr)
+        return 2
+    if args.horizon > MAX_HORIZON:
+        print(f"chaser-bt: search-trial --horizon {args.horizon}: at most {MAX_HORIZON} (the exact search takes about "
+              f"8x longer per move: seconds per plan at {MAX_HORIZON})", file=sys.stderr)
         return 2
     trial = run_trial(SearchConfig(args.planner, args.horizon, args.gamma), args.seed, search_s=args.search_s)
     out = summary(trial)
@@ -296,7 +307,9 @@ def add_command(subparsers) -> None:
                                           "within 200 m of the target, the camera detects nothing, and the search runs "
                                           "on; print its belief gain and detection probability.")
     p.add_argument("--planner", choices=("rhc", "max"), default="rhc", help="RHC (Algorithm 2; default) or max-belief")
-    p.add_argument("--horizon", type=int, default=5, metavar="H", help="RHC moves per path, h (default 5)")
+    p.add_argument("--horizon", type=int, default=5, metavar="H",
+                   help=f"RHC moves per path, h, 1-{MAX_HORIZON}: the exact search takes about 8x longer per move "
+                        f"(seconds per plan at h = {MAX_HORIZON}) (default 5)")
     p.add_argument("--gamma", type=float, default=0.9, help="RHC discount, in (0, 1] (default 0.9)")
     p.add_argument("--seed", type=seed_argument, default=0, metavar="N", help="simulator seed (also draws the target's path; default 0)")
     p.add_argument("--search-s", type=float, default=120.0, metavar="S", help="seconds of search before the trial stops (default 120)")

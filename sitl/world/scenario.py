@@ -128,11 +128,25 @@ def load_scenario(path: str | Path) -> Scenario:
         text = p.read_text(encoding="utf-8")
     except OSError as e:
         raise ScenarioError(f"{p}: cannot read scenario: {e.strerror}") from e
+    except UnicodeDecodeError as e:
+        raise ScenarioError(f"{p}: not a scenario: byte {e.start} is not UTF-8 text (a binary file?)") from None
     try:
         doc = yaml.safe_load(text)
     except yaml.YAMLError as e:
         raise ScenarioError(f"{p}: not valid YAML: {e}") from e
+    except ValueError as e:  # an integer of thousands of digits: int() refuses it
+        raise ScenarioError(f"{p}: not a scenario: {str(e).split(':')[0]}") from None
+    except RecursionError:
+        raise ScenarioError(f"{p}: not a scenario: YAML nested too deeply to read") from None
     return Scenario.from_dict(doc, source=str(p))
+
+
+def _finite(v: float) -> bool:
+    """``math.isfinite``, false (not OverflowError) for an integer too large for a float."""
+    try:
+        return math.isfinite(v)
+    except OverflowError:
+        return False
 
 
 class _Parser:
@@ -167,7 +181,7 @@ class _Parser:
                 raise self.fail(at, "a number (required key is missing)")
             return default
         v = d[key]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not _finite(v):
             raise self.fail(at, "a finite number", v)
         if minimum is not None and v < minimum:
             raise self.fail(at, f"a number >= {minimum}", v)
@@ -435,7 +449,7 @@ class _Parser:
 
     def _vector(self, v: Any, path: str) -> tuple[float, float, float]:
         if (not isinstance(v, list) or len(v) != 3
-                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v)):
+                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and _finite(x) for x in v)):
             raise self.fail(path, "a list of 3 finite numbers [east, north, up] (m)", v)
         return (float(v[0]), float(v[1]), float(v[2]))
 

@@ -61,3 +61,11 @@ def test_from_params_uses_the_vehicle_parameters():
     assert sm.angle_max_rad == pytest.approx(math.radians(45))
     assert sm.climb_up_max == sm.climb_down_max == 5.0
     assert sm.yaw_rate_max == pytest.approx(math.radians(90))
+
+
+def test_from_params_reads_arducopter_4_7_names_in_their_si_units():
+    # ArduCopter 4.7+ (checked in the 4.8.0-dev source: AC_AttitudeControl "ANGLE_MAX" under ATC_, in
+    # degrees; ParametersG2 PILOT_SPD_UP/DN in m/s) answers the new names only.
+    sm = StickMap.from_params({"ATC_ANGLE_MAX": 45.0, "PILOT_SPD_UP": 5.0, "PILOT_SPD_DN": 1.5})
+    assert sm.angle_max_rad == pytest.approx(math.radians(45))
+    assert (sm.climb_up_max, sm.climb_down_max) == (5.0, 1.5)

@@ -32,3 +32,29 @@ def test_every_setting_is_one_the_simulator_and_arducopter_know():
 
     known = {p.name for p in PARAM_SPECS}
     assert {s.name for s in SAFETY_SETTINGS} <= known
+
+
+class _Vehicle:
+    """A link to a vehicle that answers only the parameter names it has (``known``)."""
+
+    def __init__(self, known: dict[str, float]) -> None:
+        self.known, self.params, self.asked = known, {}, []
+
+    def request_param(self, name: str):
+        self.asked.append(name)
+        if name in self.known:
+            self.params[name] = self.known[name]
+        return type("Cmd", (), {"done": name in self.known})()
+
+    def wait(self, predicate, timeout_s):
+        assert predicate(), "the read waits although every setting has its answer"
+
+
+def test_a_renamed_setting_is_read_under_its_new_name_in_the_old_units():
+    from chaser_bt.mission.preflight import read_safety_settings
+
+    newer = dict(FIELD_READY)
+    del newer["RTL_ALT"]
+    newer["RTL_ALT_M"] = 30.0  # ArduCopter 4.7+: RTL_ALT moved to RTL_ALT_M, in metres
+    vehicle = _Vehicle(newer)
+    assert read_safety_settings(vehicle) == FIELD_READY and "RTL_ALT" in vehicle.asked

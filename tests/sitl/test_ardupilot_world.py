@@ -73,6 +73,18 @@ def test_rehearse_without_the_binary_says_where_it_looked(tmp_path):
     assert "Traceback" not in run.stderr
 
 
+def test_rehearse_with_an_arducopter_that_cannot_run_says_so(tmp_path):
+    (tmp_path / "arducopter").write_bytes(bytes(range(256)))  # executable, but no program
+    (tmp_path / "arducopter").chmod(0o755)
+    (tmp_path / "copter.parm").write_text("FRAME_CLASS 1\n")
+    run = subprocess.run([*CLI, "rehearse", str(ROOT / "trees" / "patrol.yaml"), "--scenario",
+                          str(ROOT / "sitl" / "scenarios" / "patrol.yaml"), "--autopilot", "ardupilot",
+                          "--ardupilot", str(tmp_path), "--progress", "never"],
+                         capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert run.returncode == 1 and "Traceback" not in run.stderr, run.stderr
+    assert f"{tmp_path / 'arducopter'} cannot be run: Exec format error" in run.stderr
+
+
 # -- the real ArduCopter ---------------------------------------------------------------------------
 
 def _ardupilot() -> Path:
@@ -209,3 +221,29 @@ def test_the_command_line_offers_exactly_the_rotor_airframes():
     from sitl.vehicle.rotor_body import AIRFRAMES
 
     assert set(CLI_AIRFRAMES) == set(AIRFRAMES)
+
+
+def test_renamed_parameters_are_written_under_both_names_in_each_unit():
+    from sitl.ardupilot.process import with_renamed
+
+    out = with_renamed({"WPNAV_SPEED_UP": 500.0, "RTL_ALT": 1500.0, "FS_GCS_ENABLE": 1.0})
+    assert out == {"WPNAV_SPEED_UP": 500.0, "RTL_ALT": 1500.0, "FS_GCS_ENABLE": 1.0,
+                   "WP_SPD_UP": 5.0, "RTL_ALT_M": 15.0}
+    assert with_renamed({"WPNAV_SPEED_UP": 500.0, "WP_SPD_UP": 3.0})["WP_SPD_UP"] == 3.0  # a new name given wins
+
+
+@pytest.mark.slow
+def test_the_scenarios_climb_limits_reach_arducopter_under_whichever_name_it_knows():
+    """chase.yaml sets WPNAV_SPEED_UP 500 (cm/s); ArduCopter 4.7+ calls it WP_SPD_UP (m/s). Read back."""
+    _ardupilot()
+    from sitl.bench.ardupilot_vehicle import ArduPilotVehicle
+    from sitl.world.scenario import load_scenario
+
+    vehicle = ArduPilotVehicle(load_scenario(ROOT / "sitl" / "scenarios" / "chase.yaml"), 1)
+    try:
+        commands = [vehicle.link.request_param(name) for name in ("WPNAV_SPEED_UP", "WP_SPD_UP")]
+        vehicle.run_until(lambda: any(c.done and c.ok for c in commands), 30.0)
+        params = vehicle.link.params
+        assert params.get("WP_SPD_UP") == pytest.approx(5.0) or params.get("WPNAV_SPEED_UP") == pytest.approx(500.0), params
+    finally:
+        vehicle.close()

@@ -39,8 +39,8 @@ def xml_problems(body: str) -> list[str]:
             "GoTo: {waypoint: [0, 0, 10], acceptance_radius_m: -0.5}",
             "m.yaml:6:61: port 'acceptance_radius_m' of GoTo must be >= 0, got -0.5",
         ),
-        ("ArmAndTakeoff: {altitude_m: -5}", "m.yaml:6:39: port 'altitude_m' of ArmAndTakeoff must be > 0, got -5"),
-        ("ArmAndTakeoff: {altitude_m: 0}", "m.yaml:6:39: port 'altitude_m' of ArmAndTakeoff must be > 0, got 0"),
+        ("ArmAndTakeoff: {altitude_m: -5}", "m.yaml:6:39: port 'altitude_m' of ArmAndTakeoff must be > 0 and <= 500, got -5"),
+        ("ArmAndTakeoff: {altitude_m: 0}", "m.yaml:6:39: port 'altitude_m' of ArmAndTakeoff must be > 0 and <= 500, got 0"),
         ("BatteryAbove: {percent: 250}", "m.yaml:6:35: port 'percent' of BatteryAbove must be 0..100, got 250"),
         ("BatteryAbove: {percent: -1}", "m.yaml:6:35: port 'percent' of BatteryAbove must be 0..100, got -1"),
     ],
@@ -119,6 +119,83 @@ def test_a_subtree_literal_is_checked_where_it_is_written():
     ]
 
 
+INF = "must be a finite number, got inf (a value too large for a float reads as inf)"
+
+
+@pytest.mark.parametrize(
+    ("leaf", "problem"),
+    [
+        ('ArmAndTakeoff: {altitude_m: "1e400"}', f"m.yaml:6:39: port 'altitude_m' of ArmAndTakeoff {INF}"),
+        ("ArmAndTakeoff: {altitude_m: 1.0e400}", f"m.yaml:6:39: port 'altitude_m' of ArmAndTakeoff {INF}"),
+        (f"ArmAndTakeoff: {{altitude_m: {'9' * 400}}}", f"m.yaml:6:39: port 'altitude_m' of ArmAndTakeoff {INF}"),
+        ('Hover: {duration_s: "inf"}', f"m.yaml:6:31: port 'duration_s' of Hover {INF}"),
+        ("Hover: {duration_s: .inf}", f"m.yaml:6:31: port 'duration_s' of Hover {INF}"),
+        ("Hover: {duration_s: .nan}", "m.yaml:6:31: port 'duration_s' of Hover must be >= 0, got nan"),
+        ("GoTo: {waypoint: [0, .inf, 10]}", f"m.yaml:6:28: port 'waypoint' of GoTo {INF} (in [0.0, inf, 10.0])"),
+        ("GoTo: {waypoint: [0, -.inf, 10]}",
+         "m.yaml:6:28: port 'waypoint' of GoTo must be a finite number, got -inf (a value too large for a float reads "
+         "as inf) (in [0.0, -inf, 10.0])"),
+    ],
+)
+def test_numbers_on_ports_are_finite(leaf, problem):
+    assert yaml_problems(leaf) == [problem]
+
+
+def test_absurd_magnitudes_are_refused_where_a_leaf_bounds_them():
+    assert yaml_problems("ArmAndTakeoff: {altitude_m: 100000}") == [
+        "m.yaml:6:39: port 'altitude_m' of ArmAndTakeoff must be > 0 and <= 500, got 100000"]
+    assert yaml_problems("RHCSearch: {horizon: 1000}") == ["m.yaml:6:32: port 'horizon' of RHCSearch must be 1..8, got 1000"]
+
+
+def test_numbers_in_xml_are_finite_on_every_port_and_in_scripts():
+    found = xml_problems(
+        """
+        <root BTCPP_format="4" main_tree_to_execute="M">
+          <BehaviorTree ID="M">
+            <Sequence>
+              <ArmAndTakeoff altitude_m="1e400"/>
+              <Hover duration_s="inf"/>
+              <SetBlackboard output_key="x" value=".inf"/>
+              <Script code="y := 1e400"/>
+              <SubTree ID="Up" altitude_m="-1e999"/>
+            </Sequence>
+          </BehaviorTree>
+          <BehaviorTree ID="Up">
+            <ArmAndTakeoff altitude_m="{altitude_m}"/>
+          </BehaviorTree>
+        </root>
+        """
+    )
+    assert found == [
+        f"m.xml:4:22: port 'altitude_m' of ArmAndTakeoff {INF}",
+        f"m.xml:5:14: port 'duration_s' of Hover {INF}",
+        f"m.xml:6:37: port 'value' of SetBlackboard {INF}",
+        "m.xml:7:15: port 'code' of Script: number '1e400' at column 6 is too large for a float in 'y := 1e400'",
+        "m.xml:8:24: port 'altitude_m' of ArmAndTakeoff must be a finite number, got -inf (a value too large for a "
+        "float reads as inf)",
+    ]
+
+
+def test_a_script_refuses_numbers_no_float_holds():
+    from chaser_bt.tree.expressions import ExpressionError, parse_expression
+
+    with pytest.raises(ExpressionError, match="'1e400' at column 6 is too large for a float"):
+        parse_expression("x := 1e400")
+    with pytest.raises(ExpressionError, match="number at column 6 has 5000 digits: too large"):
+        parse_expression("x := " + "9" * 5000)  # int() would raise ValueError past 4300 digits
+    parse_expression("x := 1e300")
+
+
+def test_a_port_may_take_inf_if_it_says_so_but_never_nan():
+    port = input_port(float, "Wait at most this long (s); inf = for ever", minimum=0, infinite=True)
+    assert port.violation(float("inf")) is None
+    assert port.violation(float("nan")) == "must be >= 0, got nan"
+    assert input_port(float, "x", infinite=True).violation(float("nan")) == "must be a number, got nan"
+    assert input_port(float, "x").violation(float("-inf")) == "must be a finite number, got -inf (a value too large for a float reads as inf)"
+    with pytest.raises(ValueError, match="finite"):
+        input_port(float, "x", default=float("inf"))
+
+
 def test_a_default_outside_its_own_range_is_refused_at_declaration():
     with pytest.raises(ValueError, match=r"must be >= 0, got -1"):
         input_port(float, "Hold this long (s)", default=-1.0, minimum=0)
@@ -154,7 +231,7 @@ def test_the_node_reference_and_the_groot2_model_show_the_bounds():
     registry = default_registry()
     reference = render_node_reference(registry)
     assert "    in  percent: float (required) [0..100]  Minimum remaining capacity (%)" in reference
-    assert "    in  altitude_m: float = 20.0 [> 0]  Take-off altitude above home (m)" in reference
+    assert "    in  altitude_m: float = 20.0 [> 0 and <= 500]  Take-off altitude above home (m)" in reference
     assert "<input_port name=\"duration_s\" type=\"float\" default=\"0.0\">Hold this long (s); 0 = until halted [&gt;= 0]" in (
         node_model_xml(registry)
     )

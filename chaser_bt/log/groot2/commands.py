@@ -7,6 +7,7 @@ import logging
 import sys
 from typing import Any, Callable
 
+from chaser_bt.cli_args import groot2_port
 from chaser_bt.log.groot2.protocol import DEFAULT_PORT
 from chaser_bt.log.groot2.publisher import LOOPBACK, Groot2Publisher
 
@@ -16,9 +17,9 @@ log = logging.getLogger(__name__)
 
 
 def add_groot2_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--groot2", type=int, nargs="?", const=DEFAULT_PORT, metavar="PORT",
-                        help=f"serve the tree and its live statuses to Groot2 on PORT and PORT+1 (default {DEFAULT_PORT}, "
-                             "as BT.CPP's Groot2Publisher)")
+    parser.add_argument("--groot2", type=groot2_port, nargs="?", const=DEFAULT_PORT, metavar="PORT",
+                        help=f"serve the tree and its live statuses to Groot2 on PORT and PORT+1, 1-65534 (default "
+                             f"{DEFAULT_PORT}, as BT.CPP's Groot2Publisher)")
     parser.add_argument("--groot2-host", default=LOOPBACK, metavar="ADDRESS",
                         help=f"address the Groot2 monitor listens on (default {LOOPBACK}; 0.0.0.0 for every interface)")
 
