@@ -249,7 +249,10 @@ class CommandTracker:
             # e.g. "PreArm: Need 3D Fix", repeated by ArduPilot while it is not ready
             p.texts = [t for (t_rx, _, t) in self._texts if t_rx >= p.submitted][-1:]
         p.cmd.reason = self._reason(p, why)
-        log.warning("%s %s: %s", p.cmd.name, status.value, p.cmd.reason)
+        # A parameter read that nobody answers is a name this autopilot does not have (ArduCopter
+        # renames some between versions; the caller asks for both): not a warning.
+        level = logging.INFO if p.key[0] == "param_get" else logging.WARNING
+        log.log(level, "%s %s: %s", p.cmd.name, status.value, p.cmd.reason)
 
     @staticmethod
     def _reason(p: _Pending, why: str) -> str:
