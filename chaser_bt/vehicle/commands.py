@@ -92,6 +92,8 @@ class _Pending:
     first_sent: float = float("nan")
     deadline: float = float("nan")  # next retry / final timeout
     acked: bool = False
+    acked_at: float = float("nan")
+    beats_at_ack: int = 0  # the vehicle's heartbeats heard when the ack came
     echo_mismatch: str = ""
     failed_at: float = float("nan")
     texts: list[str] = field(default_factory=list)
@@ -104,10 +106,15 @@ class CommandTracker:
     still in flight: its ack could not be told apart, and the newest intent is what should fly.
     """
 
-    def __init__(self, *, ack_timeout_s: float, retries: int, confirm_timeout_s: float) -> None:
+    def __init__(self, *, ack_timeout_s: float, retries: int, confirm_timeout_s: float,
+                 heartbeats: Callable[[], int] | None = None) -> None:
+        """``heartbeats``: how many of the vehicle's HEARTBEATs have been heard so far. Given, an acked
+        command is not called unconfirmed before two of them came after its ack (up to three times
+        ``confirm_timeout_s``): on a noisy link a lost heartbeat is not the vehicle saying no."""
         self.ack_timeout_s = ack_timeout_s
         self.retries = retries
         self.confirm_timeout_s = confirm_timeout_s
+        self._heartbeats = heartbeats
         self.retried = 0  # retransmissions, for diagnostics
         self._pending: list[_Pending] = []
         self._failed: list[_Pending] = []  # recently refused, still collecting their explanation
@@ -164,7 +171,8 @@ class CommandTracker:
             p.deadline = now + self.ack_timeout_s  # still working: wait, do not resend
         elif result == mavlink2.MAV_RESULT_ACCEPTED:
             p.cmd.result = result
-            p.acked = True
+            p.acked, p.acked_at = True, now
+            p.beats_at_ack = self._heartbeats() if self._heartbeats is not None else 0
             p.deadline = now + self.confirm_timeout_s
             self._advance(p, now)
         else:
@@ -207,7 +215,7 @@ class CommandTracker:
         if p.acked:
             if p.confirm is None or p.confirm():
                 self._finish(p, CommandStatus.ACCEPTED, "", now)
-            elif now >= p.deadline:
+            elif now >= p.deadline and not self._heartbeats_missing(p, now):
                 self._finish(
                     p, CommandStatus.TIMED_OUT,
                     f"accepted, but telemetry did not show it within {self.confirm_timeout_s:g} s", now,
@@ -227,6 +235,12 @@ class CommandTracker:
             self._finish(p, CommandStatus.FAILED, p.echo_mismatch, now)
         else:
             self._finish(p, CommandStatus.TIMED_OUT, f"no answer after {cmd.attempts} attempts", now)
+
+    def _heartbeats_missing(self, p: _Pending, now: float) -> bool:
+        """Fewer than two heartbeats since the ack, and still within three confirmation windows."""
+        if self._heartbeats is None or now >= p.acked_at + 3 * self.confirm_timeout_s:
+            return False
+        return self._heartbeats() - p.beats_at_ack < 2
 
     def _transmit(self, p: _Pending, now: float) -> None:
         p.send(p.cmd.attempts)

@@ -193,8 +193,10 @@ class VehicleLink:
         self._t_boot_seen = (math.nan, 0.0)  # (the vehicle's latest time, link time it last moved)
         self._timed_rx_at = -math.inf  # link time of the latest message carrying the vehicle's time
         self._fault_since: float | None = None  # link time state.telemetry_fault was set
+        self._heartbeats = 0  # the vehicle's, believed
         self._commands = CommandTracker(
             ack_timeout_s=config.ack_timeout_s, retries=config.retries, confirm_timeout_s=config.confirm_timeout_s,
+            heartbeats=lambda: self._heartbeats,
         )
         t = monotonic()
         self._opened_at = t
@@ -646,6 +648,7 @@ class VehicleLink:
         else:
             previous_mode = self.state.mode
             update_state(self.state, msg, self.frame)
+            self._heartbeats += mtype == "HEARTBEAT"
             if self.state.t_boot_s != self._t_boot_seen[0]:
                 self._t_boot_seen = (self.state.t_boot_s, now)
             if mtype == "HEARTBEAT" and self.state.mode != previous_mode:

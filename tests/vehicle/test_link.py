@@ -298,6 +298,21 @@ def test_a_lost_ack_is_not_a_refusal_when_the_heartbeat_shows_the_mode():
     assert cmd.ok and cmd.attempts == 1
 
 
+def test_heartbeats_lost_after_the_ack_are_not_the_vehicle_saying_no():
+    # A noisy link eats the heartbeats for 4 s after the ack; the mode did change. Unconfirmed is
+    # called only after two heartbeats that do not show it (bounded at 3 x confirm_timeout_s).
+    r = make_rig()
+    r.run(1.2)
+    beat = r.fake.heartbeat
+    r.fake.heartbeat = lambda: None
+    cmd = r.link.set_mode("RTL")
+    r.run(4.0)
+    assert cmd.status is CommandStatus.SENT and cmd.result == mavlink2.MAV_RESULT_ACCEPTED
+    r.fake.heartbeat = beat
+    r.run(2.0, until=lambda: cmd.done)
+    assert cmd.ok and r.link.state.mode == "RTL"
+
+
 def test_position_mode_on_the_ground_waits_for_a_position_estimate():
     r = make_rig(ready=False)
     r.run(1.2)
