@@ -26,6 +26,7 @@ class SequenceWatch:
     backward_steps: int = field(default=0, init=False)  # over the whole link, for the counters
     _last: int | None = field(default=None, init=False)
     _recent: deque[bool] = field(default_factory=deque, init=False, repr=False)
+    _recent_backward: int = field(default=0, init=False)  # sum(_recent), kept as it changes
 
     def observe(self, seq: int) -> None:
         seq &= 0xFF
@@ -34,14 +35,15 @@ class SequenceWatch:
             backward = step >= 128  # 1..128 packets back; a lost packet only ever skips forward
             self.backward_steps += backward
             self._recent.append(backward)
+            self._recent_backward += backward
             if len(self._recent) > self.window:
-                self._recent.popleft()
+                self._recent_backward -= self._recent.popleft()
         self._last = seq
 
     @property
     def fault(self) -> str:
         """'' while the sequence is one sender's; else why not."""
-        backward = sum(self._recent)
+        backward = self._recent_backward
         if backward < self.max_backward:
             return ""
         return (f"two senders use the vehicle's ids: {backward} of the last {len(self._recent)} MAVLink sequence "

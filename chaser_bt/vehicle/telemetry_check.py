@@ -134,12 +134,14 @@ class TelemetryGate:
     limits: TelemetryLimits = field(default_factory=TelemetryLimits)
     fault: str = field(default="", init=False)
     _recent: deque[tuple[float, bool]] = field(default_factory=deque, init=False, repr=False)
+    _recent_dropped: int = field(default=0, init=False)  # drops in _recent, kept as it changes
 
     def admit(self, msg: Any, state: Any, now: float) -> bool:
         problem = telemetry_problem(msg, state, self.limits)
         self._recent.append((now, problem is not None))
+        self._recent_dropped += problem is not None
         while self._recent and self._recent[0][0] < now - self.limits.flood_window_s:
-            self._recent.popleft()
+            self._recent_dropped -= self._recent.popleft()[1]
         if problem is not None:
             reason, detail = problem
             counts: Counter[str] = state.telemetry_rejected
@@ -150,7 +152,7 @@ class TelemetryGate:
         return problem is None
 
     def _update_fault(self, problem: tuple[str, str] | None) -> None:
-        dropped = sum(bad for _, bad in self._recent)
+        dropped = self._recent_dropped
         if dropped >= self.limits.flood_min and 2 * dropped >= len(self._recent):
             if not self.fault:
                 self.fault = (f"telemetry cannot be trusted: {dropped} of {len(self._recent)} messages dropped in "
