@@ -36,7 +36,6 @@ read) raises :class:`FaultNotInjected`, so a run never passes for a fault that d
 
 from __future__ import annotations
 
-import errno
 import logging
 import math
 import os
@@ -231,12 +230,8 @@ class FaultInjector:
         while True:
             try:
                 data = self._sock.recv(_RECV_CHUNK)
-            except BlockingIOError:
+            except BlockingIOError:  # EAGAIN / EWOULDBLOCK: nothing more now
                 return
-            except OSError as exc:
-                if exc.errno in (errno.EAGAIN, errno.EWOULDBLOCK):
-                    return
-                raise
             if not data:
                 return
             for msg in self._mav.parse_buffer(data) or ():
