@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import enum
 import math
+from dataclasses import replace
 from typing import Any, Iterator
 
 import numpy as np
@@ -173,12 +174,15 @@ class FollowGlobal(_Follow):
 
 @register_behaviour
 class CVFollow(_Follow):
-    """Follow the camera's target estimate (bearing from vision); range from ``range_cue`` when fresh; RUNNING."""
+    """Follow the camera's target estimate (bearing from vision); range from ``range_cue`` when fresh, and
+    the target's velocity (for ``feed_forward``) from ``velocity_cue`` when fresh; RUNNING."""
 
     INPUT_PORTS = {
         "target": input_port(TargetEstimate, "Vision target estimate", required=False, default_key=ESTIMATE_KEY),
         "range_cue": input_port(TargetCue, "Optional cue whose distance replaces the vision range (remap it to "
                                 "{@target/telemetry} for the target's own GPS); unset: range from vision", required=False),
+        "velocity_cue": input_port(TargetCue, "Optional cue whose velocity is the target's (remap it to the radar cue, "
+                                   "{@target/cue}); unset: differenced vision positions", required=False),
         "range_smoothing_s": input_port(float, "Vision range low-pass time constant (s): keep the bearing, slow the "
                                         "range; 0 = use the estimate as it is", default=0.0, minimum=0),
         **_Follow.COMMON_PORTS,
@@ -188,10 +192,19 @@ class CVFollow(_Follow):
     def config_options(self) -> dict[str, Any]:
         return {"range_smoothing_s": self.get_input("range_smoothing_s")}
 
+    def _fresh(self, port: str) -> TargetCue | None:
+        cue: TargetCue | None = optional_input(self, port)
+        return cue if cue is not None and cue.age(self._now()) <= self.get_input("stale_after_s") else None
+
     def target(self) -> TargetCue | None:
         est: TargetEstimate | None = optional_input(self, "target")
-        ranged: TargetCue | None = optional_input(self, "range_cue")
-        if est is None or ranged is None or ranged.age(self._now()) > self.get_input("stale_after_s"):
+        if est is None:
+            return None
+        moving = self._fresh("velocity_cue")
+        if moving is not None and moving.velocity_enu is not None:
+            est = replace(est, velocity_enu=moving.velocity_enu)
+        ranged = self._fresh("range_cue")
+        if ranged is None:
             return est
         camera = est.position_enu - est.range_m * est.bearing_enu if math.isfinite(est.range_m) else self.state.position_enu
         rng = float(np.linalg.norm(ranged.position_enu - camera))

@@ -1,4 +1,5 @@
-"""Streaming to the ground (the paper's fourth task): estimate, radar tracks and video with boxes.
+"""Streaming to the ground (the paper's fourth task): estimate, radar tracks and video with boxes;
+and the operator's designations coming up (:class:`GroundDesignation`).
 
 :class:`StreamToGround` sends, each tick, the ownship's status, the camera's target estimate
 (``/target/estimate``) when it is new, the radar tracks (from the ``radar=`` resource, the picture
@@ -18,13 +19,15 @@ import py_trees
 
 from behaviours.base import VehicleBehaviour, optional_input, state_port
 from chaser_bt.cue import TargetCue, TargetEstimate
+from behaviours.radar import OPERATOR_CONFIRMATION_KEY
 from behaviours.sar import FIND_KEY
 from chaser_bt.find import Find
 from chaser_bt.ground.auth import StreamSigner
 from chaser_bt.ground.protocol import Box, cue_message, estimate_message, find_message, status_message, tracks_message
 from chaser_bt.ground.sender import GroundSender
+from chaser_bt.ground.uplink import UplinkReceiver
 from chaser_bt.radar.feed import RadarFeed
-from chaser_bt.tree import NodeKind, input_port, register_behaviour
+from chaser_bt.tree import NodeKind, input_port, output_port, register_behaviour
 from chaser_bt.vehicle.signing import load_key
 from chaser_bt.vision.frame_source import Frame
 from chaser_bt.vision.perception import PerceptionWorker
@@ -147,3 +150,33 @@ class StreamToGround(VehicleBehaviour):
         if self.sender is not None:
             self.sender.close()
             self.sender = None
+
+
+@register_behaviour
+class GroundDesignation(VehicleBehaviour):
+    """The operator's designations from the ground: each signed ``designate`` command the ``uplink=``
+    resource (a :class:`~chaser_bt.ground.uplink.UplinkReceiver`, ``chaser-bt run --uplink``) believed
+    writes its radar track id to ``operator_track`` (the radar behaviours validate it, or switch the
+    chase to it). Always SUCCESS: without the resource the uplink is off, and nothing the network
+    sends can fail the mission. Several nodes may share the one uplink (whichever ticks reads it).
+    """
+
+    NODE_KIND = NodeKind.ACTION
+    INPUT_PORTS = {"state": state_port()}
+    OUTPUT_PORTS = {"operator_track": output_port(int, "The track id the operator designated",
+                                                  default_key=OPERATOR_CONFIRMATION_KEY)}
+
+    def setup(self, **kwargs: Any) -> None:
+        super().setup(**kwargs)
+        uplink = kwargs.get("uplink")
+        self.uplink: UplinkReceiver | None = uplink if isinstance(uplink, UplinkReceiver) else None
+
+    def update(self) -> Status:
+        if self.uplink is None:
+            self.feedback_message = "uplink off (chaser-bt run --uplink)"
+            return Status.SUCCESS
+        for cmd in self.uplink.poll():
+            self._set_output("operator_track", cmd.track_id)
+        c = self.uplink.counters
+        self.feedback_message = f"uplink: {c.accepted} command(s), {sum(c.as_dict().values()) - c.accepted} dropped"
+        return Status.SUCCESS

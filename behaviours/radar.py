@@ -1,5 +1,11 @@
 """Radar behaviours (paper section 2.2.1, state 1 -> 2 and 3): a validated intruder track, and its cue.
 
+Validating a track designates the target: :class:`RadarTrackValidated` writes its
+:class:`~chaser_bt.radar.custody.Custody` to ``/target/custody``, and :class:`RadarCue` carries that
+custody over every radar picture (:func:`~chaser_bt.radar.custody.track_custody`: across drop-outs,
+new ids and id swaps, never to another object) and cues on the designated target alone. The
+operator changes the target by writing a track id to ``/radar/operator_confirmed_track``.
+
 Both read the radar through a :class:`chaser_bt.radar.feed.RadarFeed` handed to ``setup`` as
 ``radar=`` (beside ``link`` and ``clock``); the feed filters our own drone out (the track
 correlator, section 3.3), so neither behaviour can ever validate or cue on the ownship.
@@ -7,13 +13,15 @@ correlator, section 3.3), so neither behaviour can ever validate or cue on the o
 
 from __future__ import annotations
 
+import logging
 from typing import Any
 
 import py_trees
 
 from behaviours.base import VehicleBehaviour, optional_input, state_port
 from chaser_bt.cue import TargetCue
-from chaser_bt.radar.feed import RadarFeed, RadarPicture, select_intruder
+from chaser_bt.radar.custody import Custody, CustodyEvent, CustodyParams, designate, track_custody
+from chaser_bt.radar.feed import RadarFeed, RadarPicture, RadarTrack
 from chaser_bt.tree import NodeKind, input_port, output_port, register_behaviour
 
 Status = py_trees.common.Status
@@ -21,6 +29,14 @@ Status = py_trees.common.Status
 VALIDATED_TRACK_KEY = "/radar/validated_track"
 OPERATOR_CONFIRMATION_KEY = "/radar/operator_confirmed_track"
 CUE_KEY = "/target/cue"
+CUSTODY_KEY = "/target/custody"
+
+log = logging.getLogger(__name__)
+
+
+def _log(events: list[CustodyEvent], node: str) -> None:
+    for e in events:
+        log.info("%s: %s at %.1f s", node, e, e.t)
 
 
 class _RadarBehaviour(VehicleBehaviour):
@@ -51,9 +67,15 @@ class RadarTrackValidated(_RadarBehaviour):
         "min_track_age_s": input_port(float, "The track must have lived this long (s)", default=1.0, minimum=0),
         "operator_confirmation": input_port(int, "Track id the operator confirmed", required=False,
                                             default_key=OPERATOR_CONFIRMATION_KEY),
+        "custody": input_port(Custody, "The target designated so far (re-validating it changes nothing)",
+                              required=False, default_key=CUSTODY_KEY),
         "state": state_port(),
     }
-    OUTPUT_PORTS = {"validated_track": output_port(int, "Id of the validated track", default_key=VALIDATED_TRACK_KEY)}
+    OUTPUT_PORTS = {
+        "validated_track": output_port(int, "Id of the validated track", default_key=VALIDATED_TRACK_KEY),
+        "designated": output_port(Custody, "Custody of the target the validated track designates",
+                                  default_key=CUSTODY_KEY),
+    }
 
     def update(self) -> Status:
         pic = self.picture()
@@ -67,44 +89,79 @@ class RadarTrackValidated(_RadarBehaviour):
         else:
             for tr in pic.intruders:
                 if tr.confidence >= min_conf and pic.t - tr.first_seen_t >= min_age:
-                    chosen, why = tr, f"confidence {tr.confidence:.2f}"
+                    chosen, why = tr, f"radar confidence {tr.confidence:.2f}"
                     break
         if chosen is None:
             self.feedback_message = f"{len(pic.intruders)} unvalidated track(s), ownship {sorted(pic.ownship_ids)}"
             return Status.FAILURE
+        custody, event = designate(chosen, pic.t, why, optional_input(self, "custody"))
+        if event is not None:
+            _log([event], self.name)
         self._set_output("validated_track", chosen.track_id)
+        self._set_output("designated", custody)
         self.feedback_message = f"track {chosen.track_id} validated ({why})"
         return Status.SUCCESS
 
 
 @register_behaviour
 class RadarCue(_RadarBehaviour):
-    """Write the intruder's radar cue (ENU position, covariance, velocity, time) to ``cue``.
+    """Write the designated target's radar cue (ENU position, covariance, velocity, time) to ``cue``
+    and its custody to ``custody``.
 
-    Follows the validated track, or after a drop the nearest other track to the last cue. SUCCESS
-    with a cue no older than ``max_age_s``; FAILURE when the radar has none (cue lost: search).
+    The target is the one ``designated`` holds (RadarTrackValidated writes it), else the ``track``
+    given, else the most confident track (then designated here). Custody follows it across radar
+    drop-outs, new ids and id swaps and never hands it to another object; an operator's track id on
+    ``operator_track`` switches the target. SUCCESS with a cue of the target no older than
+    ``max_age_s``; FAILURE while the radar does not confirm it (cue lost: search).
     """
 
     NODE_KIND = NodeKind.ACTION
     INPUT_PORTS = {
-        "track": input_port(int, "Preferred track id (the validated one)", required=False,
+        "designated": input_port(Custody, "The designated target's custody", required=False, default_key=CUSTODY_KEY),
+        "track": input_port(int, "Track id to designate when nothing is designated yet", required=False,
                             default_key=VALIDATED_TRACK_KEY),
+        "operator_track": input_port(int, "Track id the operator designates: switches the target", required=False,
+                                     default_key=OPERATOR_CONFIRMATION_KEY),
         "max_age_s": input_port(float, "A cue older than this is lost (s)", default=2.0, minimum=0),
+        "max_coast_s": input_port(float, "Unconfirmed this long, the target is lost (s)", default=15.0, above=0),
         "state": state_port(),
     }
-    OUTPUT_PORTS = {"cue": output_port(TargetCue, "The intruder cue", default_key=CUE_KEY)}
-
-    def initialise(self) -> None:
-        self._last: TargetCue | None = None
+    OUTPUT_PORTS = {
+        "cue": output_port(TargetCue, "The designated target's cue", default_key=CUE_KEY),
+        "custody": output_port(Custody, "The designated target's custody", default_key=CUSTODY_KEY),
+    }
 
     def update(self) -> Status:
         pic = self.picture()
-        last = self._last.position_enu if self._last is not None else None
-        tr = select_intruder(pic, optional_input(self, "track"), last)
-        if tr is None or pic.t - tr.t > self.get_input("max_age_s"):
+        custody = self._designated(pic)
+        if custody is None:
             self.feedback_message = "no intruder track"
             return Status.FAILURE
-        self._last = tr.to_cue()
-        self._set_output("cue", self._last)
-        self.feedback_message = f"track {tr.track_id} at {tr.position_enu.round(1).tolist()}, age {pic.t - tr.t:.1f} s"
+        custody, events = track_custody(custody, pic, CustodyParams(max_coast_s=self.get_input("max_coast_s")))
+        _log(events, self.name)
+        self._set_output("custody", custody)
+        if custody.track_id is None or pic.t - custody.t_confirmed > self.get_input("max_age_s"):
+            state = "lost" if custody.lost else f"coasting {custody.since_confirmed(pic.t):.1f} s"
+            self.feedback_message = f"target {custody.target_id} {state}"
+            return Status.FAILURE
+        self._set_output("cue", custody.cue())
+        self.feedback_message = (f"target {custody.target_id} on track {custody.track_id} at "
+                                 f"{custody.position_enu.round(1).tolist()}, age {pic.t - custody.t_confirmed:.1f} s")
         return Status.SUCCESS
+
+    def _designated(self, pic: RadarPicture) -> Custody | None:
+        """The custody to carry: the designated one, switched by the operator, or one designated now."""
+        custody: Custody | None = optional_input(self, "designated")
+        operator = optional_input(self, "operator_track")
+        tracks = {tr.track_id: tr for tr in pic.intruders}
+        if operator is not None and operator in tracks and (custody is None or operator not in custody.track_ids):
+            custody, event = designate(tracks[operator], pic.t, "operator", custody)
+            _log([event] if event else [], self.name)
+        if custody is not None:
+            return custody
+        chosen: RadarTrack | None = tracks.get(optional_input(self, "track")) or (pic.intruders[0] if pic.intruders else None)
+        if chosen is None:
+            return None
+        custody, event = designate(chosen, pic.t, f"radar confidence {chosen.confidence:.2f}")
+        _log([event] if event else [], self.name)
+        return custody

@@ -81,6 +81,10 @@ class VisionPipeline(VehicleBehaviour):
         "cue": input_port(TargetCue, "Where the target should be (radar or telemetry): the detector looks there and "
                                      "tracks far from it are not the target", required=False),
         "max_cue_age_s": input_port(float, "An older cue is not used (s)", default=2.0, minimum=0),
+        "cue_coast_s": input_port(float, "A cue older than max_cue_age_s but younger than this still gates, carried on "
+                                         "its velocity with a widening gate (0: off)", default=0.0, minimum=0),
+        "cue_accel_mps2": input_port(float, "How hard the target may accelerate while the cue coasts (m/s^2)",
+                                     default=6.0, minimum=0),
         "detect_every": input_port(int, "Run the detector on every k-th frame, trackers between (0: the camera's setting)",
                                    default=0, minimum=0),
         "state": state_port(),
@@ -141,7 +145,8 @@ class VisionPipeline(VehicleBehaviour):
             known_range = float(np.linalg.norm(ranged.position_enu - cam))
         cue = optional_input(self, "cue")
         if cue is not None and cue.age(now) > self.get_input("max_cue_age_s"):
-            cue = None
+            # A designated target's cue, briefly unconfirmed, still says where a detection cannot be it.
+            cue = cue.coasted(now, self.get_input("cue_accel_mps2")) if cue.age(now) <= self.get_input("cue_coast_s") else None
         vel = s.velocity_enu if np.all(np.isfinite(s.velocity_enu)) else np.zeros(3)
         pose = OwnshipPose(now, s.position_enu, vel, s.attitude)
         if threaded:  # hand the worker this tick's inputs, read its latest result: no waiting

@@ -39,6 +39,7 @@ _COMMAND_MODULES = (
     "chaser_bt.control.commands",
     "chaser_bt.vision.commands",
     "chaser_bt.log.commands",
+    "chaser_bt.ground.commands",
 )
 
 # Commands that run the simulator live in sitl/ and are imported only when named (docs/design.md §2: chaser_bt
@@ -109,7 +110,8 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
         return p
 
     def tree_argument(p: argparse.ArgumentParser) -> None:
-        p.add_argument("tree", type=Path, metavar="TREE", help="mission tree file: YAML (docs/trees.md) or BT.CPP v4 XML")
+        p.add_argument("tree", type=arg.tree_file, metavar="TREE",
+                       help="mission tree file: YAML (docs/trees.md) or BT.CPP v4 XML; or a shipped tree's name (`chaser-bt list`)")
 
     p = command("validate", _validate, "check a tree against the behaviour declarations; list every problem")
     tree_argument(p)
@@ -120,6 +122,8 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                    help="unicode outline (default) or dot: pipe into `dot -Tpng`")
 
     command("nodes", _nodes, "list every node a tree can use, with its ports (from their declarations)")
+
+    command("list", _list, "list the shipped trees and scenarios, by the names TREE and --scenario take, with their files")
 
     p = command("run", _run, "fly a tree against a vehicle (the simulator, ArduPilot SITL or a real ArduCopter)")
     tree_argument(p)
@@ -140,6 +144,12 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     p.add_argument("--radar-from", action="append", type=arg.ip_address, metavar="IP",
                    help="accept radar datagrams only from this address (repeat for several); without this or "
                         "--radar-key anyone who reaches the port can cue the mission")
+    p.add_argument("--uplink", type=arg.host_port, metavar="HOST:PORT",
+                   help="listen here for the operator's signed designations (docs/ground.md; default: no uplink)")
+    p.add_argument("--uplink-key", type=arg.input_file, metavar="FILE",
+                   help="the uplink's key, MAVLink signing's format (required with --uplink: it is never unsigned)")
+    p.add_argument("--uplink-from", action="append", type=arg.ip_address, metavar="IP",
+                   help="believe uplink commands only from this address (repeat for several; default: any that signs)")
     p.add_argument("--camera", metavar="SOURCE", help="video file, stream URL or device index for the on-board camera (default: none)")
     p.add_argument("--camera-size", type=_size, metavar="WxH", help="resize camera frames to this size, px (default: as captured)")
     p.add_argument("--perception", choices=("thread", "inline"), default="thread",
@@ -157,8 +167,8 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
 
     p = command("rehearse", _rehearse, "fly a tree against the in-process simulator and report (Ctrl-C: a partial report)")
     tree_argument(p)
-    p.add_argument("--scenario", required=True, type=Path, metavar="FILE",
-                   help="scenario file (sitl/scenarios/README.md; required)")
+    p.add_argument("--scenario", required=True, type=arg.scenario_file, metavar="FILE",
+                   help="scenario file (sitl/scenarios/README.md) or a shipped scenario's name (`chaser-bt list`; required)")
     p.add_argument("--seed", type=arg.seed, default=DEFAULT_SEED, metavar="N",
                    help=f"simulator seed: the same seed flies the same flight (default {DEFAULT_SEED})")
     p.add_argument("--rate-hz", type=arg.tick_rate, default=10.0, metavar="HZ",
@@ -195,7 +205,8 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
             sub.add_parser(name, help=help_, add_help=False)
 
     p = command("sitl", _sitl, "start the built-in ArduCopter-compatible simulator on loopback")
-    p.add_argument("--scenario", required=True, type=Path, metavar="FILE", help="scenario file (sitl/scenarios/README.md; required)")
+    p.add_argument("--scenario", required=True, type=arg.scenario_file, metavar="FILE",
+                   help="scenario file (sitl/scenarios/README.md) or a shipped scenario's name (`chaser-bt list`; required)")
     p.add_argument("--speedup", type=arg.positive_float, default=1.0, metavar="X", help="simulated seconds per wall second (default 1)")
     p.add_argument("--seed", type=arg.seed, default=DEFAULT_SEED, metavar="N",
                    help=f"simulator seed, as rehearse's (default {DEFAULT_SEED})")
@@ -270,6 +281,20 @@ def _show(args: argparse.Namespace) -> int:
 
     tree = _load_tree(args.tree)
     print(render_dot(tree) if args.format == "dot" else render_tree(tree))
+    return EXIT_OK
+
+
+def _list(args: argparse.Namespace) -> int:
+    from chaser_bt.shipped import shipped_scenarios, shipped_trees
+
+    for title, shipped in (("trees (TREE)", shipped_trees()), ("scenarios (--scenario)", shipped_scenarios())):
+        print(f"shipped {title}:")
+        width = max((len(name) for name in shipped), default=0)
+        for name, files in shipped.items():
+            others = ", ".join(f.name for f in files[1:])
+            print(f"  {name:<{width}}  {files[0]}" + (f" (also {others})" if others else ""))
+        if not shipped:
+            print("  none found")
     return EXIT_OK
 
 
@@ -425,7 +450,9 @@ def _sensor_options(args: argparse.Namespace):
 
     return FlightSensorOptions(radar_listen=args.radar, radar_pose_file=args.radar_pose,
                                radar_time_offset_s=args.radar_time_offset, radar_key_file=args.radar_key,
-                               radar_hosts=frozenset(args.radar_from) if args.radar_from else None, camera=args.camera,
+                               radar_hosts=frozenset(args.radar_from) if args.radar_from else None,
+                               uplink_listen=args.uplink, uplink_key_file=args.uplink_key,
+                               uplink_hosts=frozenset(args.uplink_from or ()), camera=args.camera,
                                camera_size=args.camera_size, telemetry=not args.no_telemetry,
                                perception=args.perception)
 
@@ -548,13 +575,15 @@ def _sitl(args: argparse.Namespace) -> int:
 
 
 def _version() -> str:
-    """The installed package's version (``unknown`` when run from a checkout that was never installed)."""
+    """The installed package's version (the source's, ``chaser_bt.__version__``, from a checkout never installed)."""
     from importlib.metadata import PackageNotFoundError, version
 
     try:
         return version("chaser-bt")
     except PackageNotFoundError:
-        return "unknown"
+        import chaser_bt
+
+        return chaser_bt.__version__
 
 
 if __name__ == "__main__":

@@ -16,11 +16,13 @@ import tempfile
 from pathlib import Path
 from typing import Callable, Iterable, NoReturn
 
+from chaser_bt.shipped import NotShipped, resolve_scenario, resolve_tree
+
 __all__ = [
     "PROG", "ChaserParser", "did_you_mean", "seed", "positive_float", "non_negative_float", "positive_int",
     "non_negative_int", "port", "listen_port", "groot2_port", "tick_rate", "host_port", "connection_string",
-    "geodetic_point", "file_problem", "input_file", "output_file", "output_dir", "add_verbose_everywhere",
-    "AUTOPILOTS", "add_autopilot_arguments",
+    "geodetic_point", "file_problem", "input_file", "tree_file", "scenario_file", "output_file", "output_dir",
+    "add_verbose_everywhere", "AUTOPILOTS", "add_autopilot_arguments",
 ]
 
 PROG = "chaser-bt"
@@ -191,6 +193,22 @@ def input_file(text: str) -> Path:
     if why is not None:
         raise argparse.ArgumentTypeError(why)
     return Path(text)
+
+
+def tree_file(text: str) -> Path:
+    """A tree: a file's path (checked when it is read), or a shipped tree's name (``chase``; ``chaser-bt list``)."""
+    try:
+        return resolve_tree(text)
+    except NotShipped as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def scenario_file(text: str) -> Path:
+    """A scenario: a file's path (checked when it is read), or a shipped scenario's name (``patrol``)."""
+    try:
+        return resolve_scenario(text)
+    except NotShipped as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _writable_folder(folder: Path) -> str | None:

@@ -52,6 +52,14 @@ class TargetCue:
             return self.position_enu
         return self.position_enu + self.velocity_enu * (t - self.t)
 
+    def coasted(self, t: float, accel_mps2: float) -> TargetCue:
+        """The cue carried to ``t`` on its velocity, its covariance grown by a target that may have
+        accelerated at up to ``accel_mps2`` meanwhile (``(a dt^2 / 2)^2`` on each axis)."""
+        dt = max(0.0, t - self.t)
+        grow = (0.5 * accel_mps2 * dt * dt) ** 2
+        return TargetCue(t, self.position_at(t), self.covariance_enu + grow * np.eye(3), self.velocity_enu, self.source,
+                         self.track_id)
+
 
 @dataclass(frozen=True)
 class TargetEstimate(TargetCue):

@@ -17,7 +17,9 @@ The scenario's ``intruders`` (:mod:`sitl.world.intruders`: Phantom-like drones) 
 with the vehicle; each sends its own MAVLink (its system id, HEARTBEAT and GLOBAL_POSITION_INT) to
 every port after the vehicle's bytes of that step, on its own radio: the vehicle's ``link_loss``
 faults do not silence it. The radar sees intruders like scripted targets. Each intruder's pilot
-draws from its own random stream.
+draws from its own random stream. The scenario's ``birds`` fly beside them (near a target or an
+intruder, each from a stream of its own): the radar sees them, and the rendered camera draws them
+where the radar has them (:mod:`sitl.world.surroundings`).
 
 Scripted ``link_loss`` faults act here, where the radio is: while one is in force nothing is read
 from or written to any port (bytes sent to the vehicle meanwhile are lost, as on a dead radio).

@@ -32,3 +32,12 @@ def test_cue_position_is_carried_on_its_velocity_when_it_has_one():
     assert moving.position_at(10.0) == pytest.approx([1.0, 2.0, 3.0])
     still = TargetCue(t=10.0, position_enu=np.array([1.0, 2.0, 3.0]))
     assert still.position_at(99.0) == pytest.approx([1.0, 2.0, 3.0])
+
+
+def test_a_coasted_cue_moves_on_its_velocity_and_widens_by_the_manoeuvre_allowance():
+    cue = TargetCue(10.0, np.array([0.0, 100.0, 30.0]), np.eye(3) * 4.0, np.array([5.0, 0.0, 0.0]), "radar", 3)
+    later = cue.coasted(12.0, 6.0)  # 2 s on: 10 m east; (0.5 * 6 * 4)^2 = 144 m^2 more on each axis
+    np.testing.assert_allclose(later.position_enu, [10.0, 100.0, 30.0])
+    np.testing.assert_allclose(np.diag(later.covariance_enu), [148.0, 148.0, 148.0])
+    assert later.t == 12.0 and later.track_id == 3 and later.age(12.0) == 0.0
+    assert cue.coasted(9.0, 6.0).covariance_enu[0, 0] == 4.0  # never backwards

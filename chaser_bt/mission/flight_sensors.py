@@ -21,6 +21,7 @@ from typing import Any
 
 from chaser_bt.geo import GeoPoint
 from chaser_bt.ground.auth import StreamVerifier
+from chaser_bt.ground.uplink import UplinkReceiver
 from chaser_bt.mission.resources import missing_resources
 from chaser_bt.radar.feed import RadarFeed
 from chaser_bt.radar.geometry import RadarPose
@@ -54,6 +55,9 @@ class FlightSensorOptions:
     radar_time_offset_s: float = 0.0
     radar_key_file: Path | None = None  # the radar's datagrams are believed only signed with this key
     radar_hosts: frozenset[str] | None = None  # ... and only from these addresses
+    uplink_listen: str | None = None  # HOST:PORT the operator's signed designations arrive on
+    uplink_key_file: Path | None = None  # required with uplink_listen: the uplink is never unsigned
+    uplink_hosts: frozenset[str] = frozenset()  # believed sources (empty: any that signs)
     camera: str | None = None
     camera_size: tuple[int, int] | None = None
     telemetry: bool = True
@@ -89,6 +93,20 @@ def check_sensors(tree: Any, options: FlightSensorOptions) -> None:
         _host_port(options.radar_listen)
         load_radar_pose(options.radar_pose_file)
         _radar_verifier(options.radar_key_file)
+    _uplink_key(options)
+
+
+def _uplink_key(options: FlightSensorOptions) -> bytes | None:
+    """The uplink's key, or None without an uplink; an uplink without a key, or a bad key, is refused."""
+    if options.uplink_listen is None:
+        return None
+    if options.uplink_key_file is None:
+        raise FlightSensorError("--uplink needs --uplink-key FILE (the uplink is never unsigned)")
+    _host_port(options.uplink_listen, "--uplink")
+    try:
+        return load_key(options.uplink_key_file)
+    except SigningKeyError as exc:
+        raise FlightSensorError(f"--uplink-key: {exc}") from None
 
 
 def load_radar_pose(path: Path) -> tuple[GeoPoint, tuple[float, float, float]]:
@@ -125,10 +143,10 @@ def _finite(v: float) -> bool:
         return False
 
 
-def _host_port(text: str) -> tuple[str, int]:
+def _host_port(text: str, flag: str = "--radar") -> tuple[str, int]:
     host, sep, port = text.rpartition(":")
     if not sep or not port.isdigit() or not 0 <= int(port) <= 65535:
-        raise FlightSensorError(f"--radar {text!r}: expected HOST:PORT such as 0.0.0.0:4950")
+        raise FlightSensorError(f"{flag} {text!r}: expected HOST:PORT such as 0.0.0.0:4950")
     return host or "0.0.0.0", int(port)
 
 
@@ -153,6 +171,13 @@ def build_flight_sensors(link: Any, clock: Any, options: FlightSensorOptions) ->
                         "(--radar-key FILE signs it, --radar-from HOST pins its source)", options.radar_listen)
         source = UdpDatagramSource(host, port, allowed_hosts=options.radar_hosts, counts=reader.counts)
         resources["radar"] = RadarFeed(source, pose, time_offset_s=options.radar_time_offset_s, reader=reader)
+    key = _uplink_key(options)
+    if key is not None:
+        host, port = _host_port(options.uplink_listen, "--uplink")
+        try:
+            resources["uplink"] = UplinkReceiver(host, port, key, allowed_hosts=options.uplink_hosts)
+        except OSError as exc:
+            raise FlightSensorError(f"--uplink {options.uplink_listen}: {exc.strerror or exc}") from None
     if options.camera is not None:
         resources["camera"] = _camera(options, clock)
     if options.telemetry:

@@ -21,7 +21,7 @@ from chaser_bt.radar.geometry import RadarPose
 from chaser_bt.radar.report import RadarScan
 from chaser_bt.radar.stream import DatagramSource, DropCounts, RadarStreamReader
 
-__all__ = ["RadarNoise", "RadarTrack", "RadarPicture", "RadarFeed", "scan_to_points", "select_intruder"]
+__all__ = ["RadarNoise", "RadarTrack", "RadarPicture", "RadarFeed", "scan_to_points"]
 
 
 @dataclass(frozen=True)
@@ -149,19 +149,3 @@ class RadarFeed:
             self._tracks[r.track_id] = RadarTrack(r.track_id, t, pts.position[k], vel, cov, r.confidence,
                                                   prev.first_seen_t if prev else t)
 
-
-def select_intruder(picture: RadarPicture, preferred_id: int | None = None,
-                    last_position_enu: np.ndarray | None = None, reacquire_m: float = 50.0) -> RadarTrack | None:
-    """The intruder track to cue on: the preferred (validated) id while it lives; after a drop, the
-    non-ownship track nearest the last cue within ``reacquire_m``; else the most confident one."""
-    intruders = picture.intruders
-    if not intruders:
-        return None
-    for tr in intruders:
-        if tr.track_id == preferred_id:
-            return tr
-    if last_position_enu is not None:
-        near = min(intruders, key=lambda tr: float(np.linalg.norm(tr.position_enu - last_position_enu)))
-        if float(np.linalg.norm(near.position_enu - last_position_enu)) <= reacquire_m:
-            return near
-    return intruders[0]

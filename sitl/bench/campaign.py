@@ -13,8 +13,9 @@ and the paper's figures (overhead tracks, relative geometry, belief maps, CDFs).
 A run **succeeds** (:class:`SuccessRule`) when it ends well (``landed``, ``following`` or
 ``completed``: not crashed, failsafe, timed out or in error) and, where the mission had a target
 (its trace saw one, or a FOV share was scored), vision acquired it and kept it in the camera's FOV for at
-least ``min_followed_s`` seconds after acquisition; where a run reports ``sar_found`` (not None), it
-must be true.
+least ``min_followed_s`` seconds after acquisition, and the object followed at the end is the one the
+mission designated (``custody_at_end``: following someone else is no success); where a run reports
+``sar_found`` (not None), it must be true.
 """
 
 from __future__ import annotations
@@ -70,8 +71,12 @@ log = logging.getLogger(__name__)
 #: Report keys summarised over a campaign (DESIGN §7; None values are left out of each summary).
 METRIC_KEYS: tuple[str, ...] = (
     "t_airborne_s", "t_acquire_s", "target_in_fov_frac", "detection_frac", "radar_assoc_frac",
-    "wrong_assoc_frac", "landed_dist_m", "followed_s", "sim_time_s", "wall_time_s",
+    "wrong_assoc_frac", "custody_frac", "target_switches", "envelope_frac", "landed_dist_m", "followed_s",
+    "sim_time_s", "wall_time_s",
 )
+
+#: Keys whose median each scenario's line of the report gives (the chase's custody and view).
+SCENARIO_KEYS: tuple[str, ...] = ("t_acquire_s", "target_in_fov_frac", "detection_frac", "custody_frac")
 
 #: Row keys that depend on the machine that flew a run and on its load, not on the run: the same run
 #: flown again, here, in a worker process or on a Ray node, has the same row but for these.
@@ -246,7 +251,7 @@ class SuccessRule:
         if row.get("sar_found") is not None:  # a search and rescue: the person must be found
             return bool(row["sar_found"])
         if _had_target(row):  # a chase: the target must be acquired and followed
-            if row.get("t_acquire_s") is None:
+            if row.get("t_acquire_s") is None or row.get("custody_at_end") is False:
                 return False
             followed = row.get("followed_s")
             return followed is None or followed >= self.min_followed_s
@@ -708,12 +713,19 @@ def aggregate(rows: Sequence[Mapping[str, Any]], success: Callable[[Mapping[str,
     n = len(rows)
     ok = [bool(success(r)) for r in rows]
     by_scenario: dict[str, dict] = {}
+    scenario_rows: dict[str, list[Mapping[str, Any]]] = {}
     for r, s in zip(rows, ok):
-        entry = by_scenario.setdefault(str(r.get("scenario_file", r.get("scenario", "?"))), {"runs": 0, "success": 0})
+        name = str(r.get("scenario_file", r.get("scenario", "?")))
+        entry = by_scenario.setdefault(name, {"runs": 0, "success": 0})
         entry["runs"] += 1
         entry["success"] += int(s)
-    for entry in by_scenario.values():
+        scenario_rows.setdefault(name, []).append(r)
+    for name, entry in by_scenario.items():
         entry["success_frac"] = entry["success"] / entry["runs"]
+        for key in SCENARIO_KEYS:
+            entry[f"{key}_median"] = summarise(r.get(key) for r in scenario_rows[name])["median"]
+        switches = [r["target_switches"] for r in scenario_rows[name] if r.get("target_switches") is not None]
+        entry["target_switches"] = sum(switches) if switches else None
     metrics = {}
     for key in METRIC_KEYS:
         stats = summarise(r.get(key) for r in rows)
@@ -802,14 +814,17 @@ def _campaign_markdown(config, rows, agg, images, markdown_table) -> str:
         f"{', no camera' if not config.camera else ''}{', quick' if config.quick else ''}); "
         f"**success {agg['success']}/{agg['runs']} = {format(agg['success_frac'] or 0.0, '.0%')}**.", "",
         f"Success: outcome in {', '.join(rule.ok_outcomes)}; with a target, acquired and kept in the camera's FOV "
-        f"≥ {rule.min_followed_s:g} s after acquisition; where `sar_found` is reported, found.", "",
+        f"≥ {rule.min_followed_s:g} s after acquisition, the last object followed the designated one; where `sar_found` is reported, found.", "",
         "## Figures against the paper", "",
         markdown_table(("key", "runs", "median", "p25–p75", "p10–p90", "paper", "median beats the paper"), [
             (k, m["n"], m["median"], _range(m["p25"], m["p75"]), _range(m["p10"], m["p90"]), m["paper"], m["median_beats_paper"])
             for k, m in agg["metrics"].items()]),
         "", "## Outcomes", "", markdown_table(("outcome", "runs"), sorted(agg["outcomes"].items())),
         "", "## By scenario", "",
-        markdown_table(("scenario", "runs", "success"), [(s, e["runs"], e["success_frac"]) for s, e in agg["by_scenario"].items()]),
+        "Medians over each scenario's runs; switches: changes of the object followed, all runs together.", "",
+        markdown_table(("scenario", "success", *(f"{k} median" for k in SCENARIO_KEYS), "switches"),
+                       [(s, f"{e['success']}/{e['runs']}", *(e.get(f"{k}_median") for k in SCENARIO_KEYS),
+                         e.get("target_switches")) for s, e in agg["by_scenario"].items()]),
     ]
     if "sar_found_frac" in agg:
         parts += ["", f"Search and rescue: found in {agg['sar_found_frac']:.0%} of runs."]

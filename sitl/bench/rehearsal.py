@@ -83,7 +83,15 @@ class RehearsalReport:
     wrong_assoc_frac: float | None = None  # ... associated to a track that is not the ownship
     radar_windows: int = 0  # 1 s windows behind radar_assoc_frac
     detection_frames: int = 0  # camera frames behind detection_frac (from acquisition to the end of following)
-    sensors: list[str] = field(default_factory=list)  # the resources the mission got
+    custody_frac: float | None = None  # follow ticks following something: share on the designated object
+    target_switches: int | None = None  # changes of the object followed
+    losses: int | None = None  # the designated object unmatched for over 2 s while following
+    reacquire_s_max: float | None = None  # the longest such gap that ended
+    envelope_frac: float | None = None  # follow ticks inside the paper's envelope (30-50 m, 30-50 deg)
+    custody_at_end: bool | None = None  # the last object followed is the designated one
+    followed_s_by_object: dict[str, float] | None = None  # seconds each object was followed
+    designated_object: str | None = None  # the object the mission designated (truth: its radar track's)
+    sensors: list[str] = field(default_factory=list)  # the sensors the tree uses (of those the rehearsal provides)
     radar_pose: str | None = None  # calibrated | surveyed
     radar_pose_err_m: float | None = None  # mission's radar position minus the truth
     radar_yaw_err_deg: float | None = None
@@ -289,9 +297,9 @@ def rehearse(
         mission_outcome=verdict.outcome.value,
         final_state=safety.state or None,
         t_safe_s=_rounded(safety.time_to_safe(_first_fault_s(scenario))),
-        **observer.scores().report_keys(),
+        **observer.report_keys(),
         **sar.report_keys(),
-        sensors=sorted(mission_sensors.resources),
+        sensors=sorted(set(mission_sensors.resources) & set(required_resources(tree.root))),
         radar_pose=None if mission_sensors.radar_pose is None else mission_sensors.radar_pose.method,
         radar_pose_err_m=pose_err[0],
         radar_yaw_err_deg=pose_err[1],

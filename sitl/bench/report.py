@@ -125,8 +125,17 @@ def _rehearsal_markdown(data: Mapping[str, Any], trace: FlightTrace | None, imag
     others = [(k, v) for k, v in data.items() if k not in DESIGN_KEYS and not isinstance(v, (dict, list))]
     if others:
         parts += ["", "## Other figures", "", markdown_table(("key", "value"), others)]
+    followed = data.get("followed_s_by_object")
+    if followed:
+        designated = data.get("designated_object")
+        parts += ["", "## Who was followed", "",
+                  f"The mission designated **{designated or 'no target'}**; seconds of the follow phase each object was "
+                  f"followed (the camera's estimate matched it):", "",
+                  markdown_table(("object", "followed (s)", "designated"), [(k, v, k == designated) for k, v in followed.items()])]
     if trace is not None and trace.events:
-        parts += ["", "## Events", "", markdown_table(("t (s)", "event", "detail"), [(e.t, e.name, e.detail) for e in trace.events])]
+        parts += ["", "## Events", "",
+                  "Times are mission time, from the start of the rehearsal (`t_airborne_s` counts from the radar validation).", "",
+                  markdown_table(("mission time (s)", "event", "detail"), [(e.t, e.name, e.detail) for e in trace.events])]
     for caption, name in images:
         parts += ["", f"## {caption}", "", f"![{caption}]({name})"]
     return "\n".join(parts) + "\n"

@@ -16,6 +16,16 @@ Only this module (and the rehearsal that calls it) reads the simulator's truth. 
 - ``detection_frac``: the share of camera frames in that span whose chosen detector/tracker box
   matches the target's true box in the rendered frame (IoU >= 0.3, or the box centre inside it);
   paper 0.66.
+- custody (the chase keeps the target it designated): the *designated* object is the one the radar
+  track named in ``/target/custody`` was of when it was designated (the radar model's truth), else
+  the first intruder; every figure above is scored on it. A tick *follows* an object when the
+  camera's latest estimate (no older than 2 s) matches it. Over the follow phase after acquisition:
+  ``custody_frac``, the share of ticks following something in which it is the designated object;
+  ``target_switches``, how often the object followed changed; ``losses`` and ``reacquire_s_max``,
+  the times the designated object went unmatched for over 2 s and the longest such gap that ended;
+  ``envelope_frac``, the share of follow ticks inside the paper's follow envelope (slant range
+  30-50 m, depression 30-50 deg, truth); ``followed_s_by_object``, seconds each object was followed;
+  ``custody_at_end``, whether the last object followed is the designated one.
 - ``radar_assoc_frac`` / ``wrong_assoc_frac``: 1 s windows of flight with the ownship in the radar's
   coverage and the radar on; in each, the association the mission's correlator held for most ticks:
   a track that follows the ownship (right), another track (wrong) or none (paper 0.917); the radar
@@ -31,7 +41,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 import py_trees
@@ -50,12 +60,16 @@ AUTONOMOUS_MODES = ("GUIDED", "ALT_HOLD")
 FOLLOW_LEAVES = ("CVFollow", "FollowGlobal")
 FOLLOW_PHASE = "follow"
 VALIDATED_TRACK_KEY = "/radar/validated_track"
+CUSTODY_KEY = "/target/custody"
 ESTIMATE_KEY = "/target/estimate"
 BELIEF_KEY = "/search/belief"
 ACQUIRE_TOL_M = 10.0
 ACQUIRE_TOL_RAD = math.radians(3.0)
 LOST_AFTER_S = 2.0  # no matching estimate for this long after an acquisition: "lost" (DESIGN §3 stale data)
 BELIEF_EVERY_S = 5.0
+#: The paper's follow envelope (section 4): slant range 30-50 m, depression 30-50 deg.
+ENVELOPE_RANGE_M = (30.0, 50.0)
+ENVELOPE_DEPRESSION_RAD = (math.radians(30.0), math.radians(50.0))
 
 
 # --- geometry of a match ------------------------------------------------------------------------
@@ -173,6 +187,9 @@ class TickRecord:
         frame_matched: that frame's chosen box matches the true target box.
         radar_state: 1 ownship's track associated, -1 another track, 0 none.
         radar_counted: airborne, radar on and the ownship in its coverage.
+        followed: index of the object a fresh estimate matched this tick (None: no fresh match).
+        designated: index of the designated object (None: no target).
+        in_envelope: the truth geometry to the designated object inside the paper's follow envelope.
     """
 
     t: float
@@ -187,6 +204,9 @@ class TickRecord:
     frame_matched: bool = False
     radar_state: int = 0
     radar_counted: bool = False
+    followed: int | None = None
+    designated: int | None = None
+    in_envelope: bool | None = None
 
 
 @dataclass(frozen=True)
@@ -206,8 +226,15 @@ class Scores:
     t_alt_reached: float | None = None
     t_acquired: float | None = None
     t_follow_end: float | None = None
+    custody_frac: float | None = None
+    target_switches: int | None = None
+    losses: int | None = None
+    reacquire_s_max: float | None = None
+    envelope_frac: float | None = None
+    custody_at_end: bool | None = None
+    followed_ticks: dict[int, int] = field(default_factory=dict)  # object index -> follow ticks following it
 
-    def report_keys(self) -> dict[str, Any]:
+    def report_keys(self, names: Sequence[str] = (), tick_s: float = 0.0) -> dict[str, Any]:
         """The keys the rehearsal report carries (rounded)."""
         def r(v: float | None, nd: int) -> float | None:
             return None if v is None else round(float(v), nd)
@@ -217,7 +244,12 @@ class Scores:
                 "target_in_fov_frac_flight": r(self.target_in_fov_frac_flight, 3),
                 "detection_frac": r(self.detection_frac, 3), "radar_assoc_frac": r(self.radar_assoc_frac, 3),
                 "wrong_assoc_frac": r(self.wrong_assoc_frac, 3), "radar_windows": self.radar_windows,
-                "detection_frames": self.detection_frames}
+                "detection_frames": self.detection_frames,
+                "custody_frac": r(self.custody_frac, 3), "target_switches": self.target_switches,
+                "losses": self.losses, "reacquire_s_max": r(self.reacquire_s_max, 2),
+                "envelope_frac": r(self.envelope_frac, 3), "custody_at_end": self.custody_at_end,
+                "followed_s_by_object": {(names[k] if k < len(names) else str(k)): round(n * tick_s, 1)
+                                         for k, n in sorted(self.followed_ticks.items())} or None}
 
 
 def _first(records: Sequence[TickRecord], after: float, pred) -> float | None:
@@ -248,6 +280,7 @@ def score_ticks(records: Sequence[TickRecord], *, has_target: bool = True, has_c
             fov = _share([bool(r.in_fov) for r in span if r.in_fov is not None])
             shots = [r.frame_matched for r in span if r.frame]
             frames, det = len(shots), _share(shots)
+    custody = _custody_scores(records, t_acq, t_end) if has_target and t_acq is not None else {}
     windows, right, wrong = 0, None, None
     if has_radar:
         windows, right, wrong = association_windows(np.array([r.t for r in records]),
@@ -258,8 +291,45 @@ def score_ticks(records: Sequence[TickRecord], *, has_target: bool = True, has_c
         t_acquire_s=None if t_acq is None else t_acq - t_alt,
         target_in_fov_frac=fov, target_in_fov_frac_flight=fov_flight, detection_frac=det,
         radar_assoc_frac=right, wrong_assoc_frac=wrong, radar_windows=windows, detection_frames=frames,
-        t_validated=t_val, t_alt_reached=t_alt, t_acquired=t_acq, t_follow_end=t_end,
+        t_validated=t_val, t_alt_reached=t_alt, t_acquired=t_acq, t_follow_end=t_end, **custody,
     )
+
+
+def _custody_scores(records: Sequence[TickRecord], t_acq: float, t_end: float) -> dict[str, Any]:
+    """The custody figures over the follow ticks from acquisition to the end of following (module docstring)."""
+    followed: list[int | None] = []  # per record: the object followed (a match no older than LOST_AFTER_S)
+    last: tuple[float, int] | None = None
+    for r in records:
+        if r.followed is not None:
+            last = (r.t, r.followed)
+        followed.append(last[1] if last is not None and r.t - last[0] <= LOST_AFTER_S else None)
+    span = [(r, f) for r, f in zip(records, followed) if t_acq <= r.t <= t_end and r.following and r.autonomous]
+    if not span:
+        return {}
+    held = [(r, f) for r, f in span if f is not None]
+    counts: dict[int, int] = {}
+    for _, f in held:
+        counts[f] = counts.get(f, 0) + 1
+    switches = sum(1 for (_, a), (_, b) in zip(held, held[1:]) if a != b)
+    gaps, start, losses = [], None, 0
+    for r, f in span:
+        on_target = f is not None and f == r.designated
+        if not on_target and start is None:
+            start = r.t
+            losses += 1
+        elif on_target and start is not None:
+            gaps.append(r.t - start + LOST_AFTER_S)
+            start = None
+    env = [bool(r.in_envelope) for r, _ in span if r.in_envelope is not None]
+    return {
+        "custody_frac": _share([f == r.designated for r, f in held]),
+        "target_switches": switches,
+        "losses": losses,
+        "reacquire_s_max": max(gaps) if gaps else None,
+        "envelope_frac": _share(env),
+        "custody_at_end": bool(held) and held[-1][1] == held[-1][0].designated,
+        "followed_ticks": counts,
+    }
 
 
 def follow_geometry_errors(trace: FlightTrace) -> tuple[float | None, float | None]:
@@ -321,10 +391,16 @@ class RehearsalObserver:
         self.events: list[TraceEvent] = []
         self.beliefs: list[BeliefSnapshot] = []
         self._cols = _TraceColumns() if trace else None
-        # The target whose truth is scored: the first intruder, else the first scripted target.
-        self._intruder = sim.intruders[0] if sim.intruders else None
-        self._scripted = None if self._intruder is not None or not sim.scenario.targets else sim.scenario.targets[0]
-        self.has_target = self._intruder is not None or self._scripted is not None
+        # The objects a chase may follow, in the camera's label order (intruders, then scripted
+        # targets); the one scored is the designated one (the first until a custody names another).
+        self._objects: list[tuple[str, Callable[[float], np.ndarray | None]]] = [
+            (intr.name, lambda t, i=intr: i.pos.copy()) for intr in sim.intruders]
+        self._objects += [(tg.name, lambda t, tg=tg: (np.asarray(tg.path.position_enu(t), float) if tg.present(t) else None))
+                          for tg in sim.scenario.targets]
+        self.has_target = bool(self._objects)
+        self._designated: int | None = 0 if self._objects else None
+        self._custody_seen: tuple | None = None
+        self._custody_track: int | None = None
         self.camera: CameraModel = (sensors.camera.pipeline.camera if sensors.camera is not None else CameraModel())
         self.has_camera = sensors.camera is not None
         self.has_radar = sensors.radar is not None
@@ -354,12 +430,47 @@ class RehearsalObserver:
 
     # -- per tick --------------------------------------------------------------------------------
 
+    @property
+    def object_names(self) -> list[str]:
+        return [name for name, _ in self._objects]
+
     def target_enu(self) -> np.ndarray | None:
-        if self._intruder is not None:
-            return self._intruder.pos.copy()
-        if self._scripted is not None and self._scripted.present(self.sim.time_s):
-            return np.asarray(self._scripted.path.position_enu(self.sim.time_s), float)
-        return None
+        """The designated object's true position now (None: no target, or not present)."""
+        if self._designated is None:
+            return None
+        return self._objects[self._designated][1](self.sim.time_s)
+
+    def _designation(self, t: float) -> None:
+        """Follow the mission's custody: a new designation names the object its track was of then;
+        a change of the carrying track is an event."""
+        custody = _blackboard(CUSTODY_KEY)
+        if custody is None or not hasattr(custody, "target_id"):
+            return
+        key = (custody.target_id, custody.t_designated)
+        if key != self._custody_seen:
+            self._custody_seen = key
+            name = self._labels.get(custody.target_id)
+            names = self.object_names
+            self._designated = names.index(name) if name in names else None
+            self.events.append(TraceEvent(t, "designated", f"track {custody.target_id}: {name or 'not a target'} "
+                                                           f"({custody.designated_by})"))
+        if custody.track_id != self._custody_track:
+            self._custody_track = custody.track_id
+            state = "coasting" if custody.track_id is None else f"track {custody.track_id}"
+            self.events.append(TraceEvent(t, "custody", "lost" if custody.lost else state))
+
+    def _followed(self, est: Any, cam_pos: np.ndarray, t: float) -> int | None:
+        """The object a fresh estimate is of: the nearest in bearing among those it matches."""
+        best: tuple[float, int] | None = None
+        for k, (_, where) in enumerate(self._objects):
+            pos = where(t)
+            if pos is None or not estimate_matches(est.position_enu, getattr(est, "bearing_enu", None), cam_pos, pos):
+                continue
+            to = pos - cam_pos
+            d = float(np.linalg.norm(est.position_enu - pos)) / max(float(np.linalg.norm(to)), 1e-6)
+            if best is None or d < best[0]:
+                best = (d, k)
+        return None if best is None else best[1]
 
     def _takeoff_altitude(self) -> float | None:
         if self._takeoff_alt is None and self._takeoff is not None:
@@ -385,15 +496,23 @@ class RehearsalObserver:
         alt = self._takeoff_altitude()
         rec.alt_reached = alt is not None and math.isfinite(self.link.state.alt_rel_m) and self.link.state.alt_rel_m >= alt
         own = np.asarray(truth.pos_enu, float)
+        self._designation(t)
+        rec.designated = self._designated
         target = self.target_enu()
         if target is not None:  # the attitude (a scipy Rotation, built on demand) only serves the target's scores
             att = truth.attitude
             rec.in_fov = in_frustum(self.camera, target, own, att)
-            est = _blackboard(ESTIMATE_KEY)
-            if est is not None and est.t != self._last_est_t:
-                self._last_est_t = est.t
-                cam_pos = self.camera.position_enu(own, att)
-                rec.acquired = estimate_matches(est.position_enu, getattr(est, "bearing_enu", None), cam_pos, target)
+            rel = target - own
+            slant = float(np.linalg.norm(rel))
+            depression = math.atan2(-rel[2], float(np.hypot(rel[0], rel[1])))
+            rec.in_envelope = (ENVELOPE_RANGE_M[0] <= slant <= ENVELOPE_RANGE_M[1]
+                               and ENVELOPE_DEPRESSION_RAD[0] <= depression <= ENVELOPE_DEPRESSION_RAD[1])
+        est = _blackboard(ESTIMATE_KEY)
+        if est is not None and est.t != self._last_est_t and self.has_target:
+            self._last_est_t = est.t
+            cam_pos = self.camera.position_enu(own, truth.attitude)
+            rec.followed = self._followed(est, cam_pos, self.sim.time_s)
+            rec.acquired = rec.followed is not None and rec.followed == self._designated
         self._camera_frame(rec)
         self._radar_state(rec, own, airborne)
         self.records.append(rec)
@@ -410,7 +529,7 @@ class RehearsalObserver:
         self._last_frame_index = frame.index
         rec.frame = True
         track = cam.pipeline.track
-        truth_boxes = [lab.box for lab in self.sensors.frame_source.last_labels if lab.index == 0] if self.has_target else []
+        truth_boxes = [lab.box for lab in self.sensors.frame_source.last_labels if lab.index == self._designated]
         rec.frame_matched = bool(track is not None and truth_boxes and box_matches(track.box, truth_boxes[0]))
 
     def _radar_state(self, rec: TickRecord, own: np.ndarray, airborne: bool) -> None:
@@ -472,6 +591,13 @@ class RehearsalObserver:
     def scores(self) -> Scores:
         return score_ticks(self.records, has_target=self.has_target, has_camera=self.has_camera,
                            has_radar=self.has_radar)
+
+    def report_keys(self) -> dict[str, Any]:
+        """The scores as the rehearsal report carries them."""
+        tick_s = float(np.median(np.diff([r.t for r in self.records]))) if len(self.records) > 1 else 0.0
+        designated = self._designated
+        return {**self.scores().report_keys(self.object_names, tick_s),
+                "designated_object": None if designated is None else self.object_names[designated]}
 
     def following(self) -> bool:
         """Whether the mission was following at its last tick."""

@@ -13,6 +13,13 @@ speed and acceleration limits (:class:`IntruderLimits`); pilots:
 - :class:`EvasivePilot`: an evasive pilot: cruising broken by sudden dashes at full speed, climbs
   and dives at the vertical limits, and stops, kept inside a box.
 
+Beside its trajectory pilot an intruder may fly scripted *manoeuvres* (:class:`Manoeuvre`: a turn,
+a dash, a climb, a dive at a set time): :class:`ManoeuvrePilot` wraps the pilot and, while one is in
+force, asks for the manoeuvre's velocity instead (the same limits apply); after it the pilot resumes.
+
+Birds placed near a target or an intruder (:class:`BirdSpec`, :class:`BirdFlock`) are seen by the
+radar and drawn by the rendered camera at the same place.
+
 Like the paper's target, each intruder also sends its position over MAVLink under its own system
 id (HEARTBEAT at 1 Hz, GLOBAL_POSITION_INT at ``telemetry_hz``), which the simulator writes to
 every port beside the vehicle's own stream (:class:`IntruderTelemetry`). The heartbeat says
@@ -23,6 +30,7 @@ so the same seed flies the same path. An intruder also implements the
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 from dataclasses import dataclass, field
@@ -31,16 +39,23 @@ from typing import Protocol
 import numpy as np
 
 from chaser_bt.geo import LocalFrame, NearbyGeodetic
+from sitl.world.camera.distractors import BIRD_LOOKS, BirdPose
+from sitl.world.radar.config import RadarSignature
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2  # noqa: E402
 
 __all__ = [
     "IntruderLimits", "Pilot", "RectanglePilot", "CirclePilot", "FigureEightPilot", "RandomWaypointsPilot",
-    "EvasivePilot", "IntruderSpec", "Intruder", "IntruderTelemetry", "TRAJECTORY_KINDS",
+    "EvasivePilot", "IntruderSpec", "Intruder", "IntruderTelemetry", "TRAJECTORY_KINDS", "MANOEUVRE_KINDS",
+    "Manoeuvre", "ManoeuvrePilot", "BirdSpec", "BirdFlock", "MAX_FLOCK",
 ]
 
+log = logging.getLogger(__name__)
+
 TRAJECTORY_KINDS = ("rectangle", "circle", "figure_eight", "random_waypoints", "evasive")
+MANOEUVRE_KINDS = ("turn", "dash", "climb", "dive")
+MAX_FLOCK = 30  # birds in one flock at most
 
 
 @dataclass(frozen=True)
@@ -253,12 +268,120 @@ class EvasivePilot:
         return v
 
 
+def _enu_heading(compass_deg: float) -> float:
+    """ENU angle (from east, counter-clockwise, rad) of a compass heading (from north, clockwise, deg)."""
+    return math.radians(90.0 - compass_deg)
+
+
+@dataclass(frozen=True)
+class Manoeuvre:
+    """A scripted manoeuvre from ``at_s`` (see ``sitl/scenarios/README.md``).
+
+    - ``turn``: the commanded heading swings at a constant rate, the shorter way, from the heading at
+      ``at_s`` to ``heading_deg`` (compass), reaching it at ``at_s + duration_s``; horizontal speed
+      ``speed_mps`` (default: the speed at ``at_s``); altitude held.
+    - ``dash``: at once ``heading_deg`` at ``speed_mps`` (default: the horizontal speed limit) for
+      ``duration_s``; altitude held.
+    - ``climb`` / ``dive``: to ``to_alt_m`` (ENU up) at ``speed_mps`` up / down (default: the vertical
+      limit), slowing to arrive, keeping the horizontal velocity of ``at_s``; done within 0.5 m of
+      ``to_alt_m`` or after ``duration_s`` if given, whichever is first (at once if the intruder is
+      already past ``to_alt_m`` in that direction).
+    """
+
+    at_s: float
+    kind: str
+    duration_s: float | None = None
+    heading_deg: float | None = None
+    speed_mps: float | None = None
+    to_alt_m: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in MANOEUVRE_KINDS:
+            raise ValueError(f"manoeuvre kind {self.kind!r}: one of {', '.join(MANOEUVRE_KINDS)}")
+        needs = ("heading_deg", "duration_s") if self.kind in ("turn", "dash") else ("to_alt_m",)
+        missing = [k for k in needs if getattr(self, k) is None]
+        if missing:
+            raise ValueError(f"a {self.kind} manoeuvre needs {', '.join(missing)}")
+
+    @property
+    def end_s(self) -> float | None:
+        """When it ends by the clock (a climb or dive may end sooner); None: when its altitude is reached."""
+        return None if self.duration_s is None else self.at_s + self.duration_s
+
+
+#: A climb or dive is done within this of its altitude.
+ARRIVE_ALT_M = 0.5
+
+
+@dataclass
+class ManoeuvrePilot:
+    """A pilot flying scripted manoeuvres over another: while one is in force (:class:`Manoeuvre`) the
+    desired velocity is the manoeuvre's, otherwise ``pilot``'s. The inner pilot is not asked during a
+    manoeuvre: it resumes afterwards from where the intruder is then. A manoeuvre starting ends the
+    one before it."""
+
+    pilot: Pilot
+    manoeuvres: tuple[Manoeuvre, ...]
+    _k: int = -1  # the latest manoeuvre started
+    _done: bool = True
+    _h0: float = 0.0  # at the manoeuvre's start: heading (ENU rad), horizontal speed and velocity
+    _speed0: float = 0.0
+    _vh0: np.ndarray = field(default_factory=lambda: np.zeros(2))
+
+    @property
+    def active(self) -> Manoeuvre | None:
+        """The manoeuvre in force at the last call, or None."""
+        return None if self._done or self._k < 0 else self.manoeuvres[self._k]
+
+    def desired_velocity(self, t, pos, vel, limits):
+        ms = self.manoeuvres
+        while self._k + 1 < len(ms) and ms[self._k + 1].at_s <= t:
+            self._k += 1
+            self._begin(ms[self._k], pos, vel)
+        if not self._done:
+            v = self._command(ms[self._k], t, pos, limits)
+            if v is not None:
+                return v
+            self._done = True
+        return self.pilot.desired_velocity(t, pos, vel, limits)
+
+    def _begin(self, m: Manoeuvre, pos: np.ndarray, vel: np.ndarray) -> None:
+        self._done = False
+        self._vh0 = np.asarray(vel[:2], float).copy()
+        self._speed0 = float(math.hypot(vel[0], vel[1]))
+        self._h0 = math.atan2(vel[1], vel[0]) if self._speed0 > 0.3 else _enu_heading(m.heading_deg or 0.0)
+        if m.kind in ("climb", "dive") and (pos[2] > m.to_alt_m if m.kind == "climb" else pos[2] < m.to_alt_m):
+            log.warning("%s at %.1f s to %.1f m: already past it at %.1f m, skipped", m.kind, m.at_s, m.to_alt_m, pos[2])
+            self._done = True
+
+    def _command(self, m: Manoeuvre, t: float, pos: np.ndarray, limits: IntruderLimits) -> np.ndarray | None:
+        """The manoeuvre's velocity at ``t``, or None once it is over."""
+        if m.end_s is not None and t >= m.end_s:
+            return None
+        if m.kind in ("turn", "dash"):
+            h1 = _enu_heading(m.heading_deg)
+            if m.kind == "turn":
+                turn = (h1 - self._h0 + math.pi) % (2.0 * math.pi) - math.pi
+                h = self._h0 + turn * min((t - m.at_s) / m.duration_s, 1.0)
+                speed = self._speed0 if m.speed_mps is None else m.speed_mps
+            else:
+                h, speed = h1, limits.speed_h_mps if m.speed_mps is None else m.speed_mps
+            return np.array([speed * math.cos(h), speed * math.sin(h), 0.0])
+        dz = m.to_alt_m - float(pos[2])
+        if abs(dz) < ARRIVE_ALT_M:
+            return None
+        limit = limits.speed_up_mps if dz > 0 else limits.speed_down_mps
+        speed = min(limit if m.speed_mps is None else m.speed_mps, math.sqrt(limits.accel_v_mps2 * abs(dz)), 1.5 * abs(dz))
+        return np.array([self._vh0[0], self._vh0[1], math.copysign(speed, dz)])
+
+
 @dataclass(frozen=True)
 class IntruderSpec:
     """An intruder as the scenario describes it (see ``sitl/scenarios/README.md``).
 
     ``trajectory`` is one of :data:`TRAJECTORY_KINDS` and ``params`` its keys (SI units, radians);
-    the intruder hovers at ``start_enu`` until ``start_s``.
+    the intruder hovers at ``start_enu`` until ``start_s``. ``manoeuvres`` (in time order) are flown
+    over the trajectory (:class:`ManoeuvrePilot`); ``radar`` is how the ground radar sees it.
     """
 
     name: str
@@ -270,8 +393,15 @@ class IntruderSpec:
     telemetry_hz: float = 5.0
     limits: IntruderLimits = IntruderLimits()
     airframe: str = "phantom"  # what the camera renders (sitl/world/camera/models.py): phantom or s1000
+    manoeuvres: tuple[Manoeuvre, ...] = ()
+    radar: RadarSignature | None = None
 
     def make_pilot(self, rng: np.random.Generator) -> Pilot:
+        """The trajectory's pilot, wrapped in a :class:`ManoeuvrePilot` when there are manoeuvres."""
+        pilot = self._trajectory_pilot(rng)
+        return ManoeuvrePilot(pilot, self.manoeuvres) if self.manoeuvres else pilot
+
+    def _trajectory_pilot(self, rng: np.random.Generator) -> Pilot:
         p = dict(self.params)
         center = tuple(p.pop("center", self.start_enu))
         if self.trajectory == "rectangle":
@@ -373,3 +503,98 @@ class IntruderTelemetry:
 
 def _cms(v: float) -> int:
     return int(min(max(round(v * 100.0), -32768), 32767))
+
+
+# -- birds near a target: one object for the radar and the camera alike ------------------------------
+
+
+class Anchor(Protocol):
+    """What a bird keeps station by: a scripted target's path or an intruder (its present state)."""
+
+    def position_enu(self, t: float) -> np.ndarray: ...
+
+    def velocity_enu(self, t: float) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class BirdSpec:
+    """A bird (``count`` 1) or a flock near the target or intruder ``near``, present from ``start_s``
+    until ``end_s`` (None: to the end); see :class:`BirdFlock` for how it flies.
+
+    ``radar.rcs_m2`` is one bird's cross-section; the radar sees a flock as one object of ``count``
+    times it (:attr:`flock_signature`).
+    """
+
+    near: str
+    offset_enu: tuple[float, float, float]
+    count: int = 1
+    spread_m: float = 5.0
+    speed_mps: float = 8.0
+    start_s: float = 0.0
+    end_s: float | None = None
+    radar: RadarSignature | None = None
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.count <= MAX_FLOCK:
+            raise ValueError(f"bird count {self.count}: 1..{MAX_FLOCK}")
+        if not (self.spread_m > 0.0 and self.speed_mps > 0.0):
+            raise ValueError(f"bird spread_m and speed_mps must be > 0, got {self.spread_m}, {self.speed_mps}")
+
+    def present(self, t: float) -> bool:
+        return t >= self.start_s and (self.end_s is None or t < self.end_s)
+
+    @property
+    def flock_signature(self) -> RadarSignature | None:
+        """The whole flock's radar signature: the birds' cross-sections add (incoherently)."""
+        r = self.radar
+        if r is None or r.rcs_m2 is None or self.count == 1:
+            return r
+        return RadarSignature(r.rcs_m2 * self.count, r.pd, r.drop_per_s)
+
+
+class BirdFlock:
+    """One ``birds`` entry in flight.
+
+    The flock's centre circles its *station point*, the anchor's position plus ``offset_enu``, at
+    radius ``spread_m`` and speed ``speed_mps`` (relative to the anchor, whose velocity it shares),
+    in a direction and from a phase drawn from ``rng``: a bird keeping near the target, never more
+    than ``spread_m`` from the station point. A flock's birds sit at fixed offsets from the centre
+    (1 sigma ``spread_m`` across, 0.4 of it up and down; their mean is the centre). The radar sees the
+    centre as one object named :attr:`label`; the camera draws every bird (:meth:`poses`), flapping,
+    in one of the looks of :data:`sitl.world.camera.distractors.BIRD_LOOKS`.
+    """
+
+    def __init__(self, spec: BirdSpec, label: str, anchor: Anchor, rng: np.random.Generator) -> None:
+        self.spec = spec
+        self.label = label
+        self.anchor = anchor
+        self._phase0 = float(rng.uniform(0.0, 2.0 * math.pi))
+        self._turn = 1.0 if rng.random() < 0.5 else -1.0  # counter-clockwise or clockwise
+        (span, flap_hz), colour = BIRD_LOOKS[int(rng.integers(len(BIRD_LOOKS)))]
+        n = spec.count
+        off = rng.normal(0.0, spec.spread_m, (n, 3)) * np.array([1.0, 1.0, 0.4]) if n > 1 else np.zeros((1, 3))
+        self.offsets = off - off.mean(axis=0)
+        self._span = span * rng.uniform(0.85, 1.15, n)
+        self._flap_hz = flap_hz * rng.uniform(0.8, 1.2, n)
+        self._flap_phase = rng.uniform(0.0, 2.0 * math.pi, n)
+        self._colour = colour
+
+    def present(self, t: float) -> bool:
+        return self.spec.present(t)
+
+    def centre(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """The flock's centre at ``t`` (ENU position, velocity): what the radar sees."""
+        s = self.spec
+        w = self._turn * s.speed_mps / s.spread_m
+        a = self._phase0 + w * (t - s.start_s)
+        station = np.asarray(self.anchor.position_enu(t), float) + np.asarray(s.offset_enu, float)
+        pos = station + s.spread_m * np.array([math.cos(a), math.sin(a), 0.0])
+        vel = np.asarray(self.anchor.velocity_enu(t), float) + s.spread_m * w * np.array([-math.sin(a), math.cos(a), 0.0])
+        return pos, vel
+
+    def poses(self, t: float) -> tuple[BirdPose, ...]:
+        """Every bird at ``t``, for the camera."""
+        pos, vel = self.centre(t)
+        v = tuple(float(x) for x in vel)
+        return tuple(BirdPose(tuple(float(x) for x in pos + d), v, float(span), float(hz), float(ph), self._colour)
+                     for d, span, hz, ph in zip(self.offsets, self._span, self._flap_hz, self._flap_phase))

@@ -33,14 +33,23 @@ from sitl.vehicle.setup import (
     PilotEvent,
     PilotScript,
 )
+from sitl.world.camera.lighting import LightingOverride
 from sitl.world.camera.models import TARGET_MODELS
 from sitl.world.camera.world import ANY_FAMILY, FAMILIES, WorldSpec
-from sitl.world.intruders import TRAJECTORY_KINDS, IntruderLimits, IntruderSpec
-from sitl.world.radar.config import RadarClutter, RadarConfig, RadarFailureRates
+from sitl.world.intruders import (
+    MANOEUVRE_KINDS,
+    MAX_FLOCK,
+    TRAJECTORY_KINDS,
+    BirdSpec,
+    IntruderLimits,
+    IntruderSpec,
+    Manoeuvre,
+)
+from sitl.world.radar.config import RadarClutter, RadarConfig, RadarFailureRates, RadarSignature
 from sitl.world.targets import CirclePath, StaticPoint, TargetPath, WaypointPath
 
 __all__ = ["ScenarioError", "BootParams", "Fault", "FAULT_KINDS", "GCS_MODES", "GroundStationEvent", "PilotEvent",
-           "PilotScript", "RADAR_BLIND_KINDS", "Scenario", "ScriptedTarget", "load_scenario"]
+           "PilotScript", "RADAR_BLIND_KINDS", "Scenario", "ScriptedTarget", "BirdSpec", "load_scenario"]
 
 INTRUDER_AIRFRAMES = ("phantom", "s1000")  # drone models the rendered camera draws (sitl/world/camera/models.py)
 
@@ -60,7 +69,7 @@ class ScriptedTarget:
     """A target flying a scripted path, present from ``start_s`` until ``end_s`` (None: to the end).
 
     ``kind`` is what the camera draws (a :data:`sitl.world.camera.models.TARGET_MODELS` key); the radar
-    does not see :data:`RADAR_BLIND_KINDS`.
+    does not see :data:`RADAR_BLIND_KINDS`; ``radar`` is how it sees the others (None: the radar's defaults).
     """
 
     name: str
@@ -68,6 +77,7 @@ class ScriptedTarget:
     start_s: float = 0.0
     end_s: float | None = None
     kind: str = "s1000"
+    radar: RadarSignature | None = None
 
     def present(self, t: float) -> bool:
         return t >= self.start_s and (self.end_s is None or t < self.end_s)
@@ -98,6 +108,12 @@ class Scenario:
     pilot: PilotScript | None = None
     ground_station: tuple[GroundStationEvent, ...] = ()
     camera_world: WorldSpec = field(default_factory=WorldSpec)  # what the rendered camera looks at
+    birds: tuple[BirdSpec, ...] = ()
+
+    @property
+    def lighting(self) -> LightingOverride | None:
+        """The scenario's ``lighting`` keys (carried to the camera world in ``camera_world.lighting``)."""
+        return self.camera_world.lighting
 
     def fault_active(self, kind: str, t: float) -> bool:
         """Whether any fault of ``kind`` is in force at sim time ``t``."""
@@ -194,7 +210,7 @@ class _Parser:
         if not isinstance(d, Mapping):
             raise self.fail("", "a mapping", d)
         allowed = ("name", "home", "wind", "airframe", "params", "boot", "faults", "time_limit_s", "start_unix_s",
-                   "radar", "targets", "intruders", "pilot", "ground_station", "camera_world")
+                   "radar", "targets", "intruders", "pilot", "ground_station", "camera_world", "birds", "lighting")
         problems: list[str] = []
 
         def checked(read, *args, default=None):
@@ -229,6 +245,12 @@ class _Parser:
             intruders=checked(self.intruders, top.get("intruders"), {t.name for t in targets},
                               int(params.get("SYSID_THISMAV", 1))),
         )
+        intruder_names = ({i.name for i in fields["intruders"]} if fields["intruders"] is not None
+                          else {i.get("name") for i in top.get("intruders") or () if isinstance(i, Mapping)})
+        fields["birds"] = checked(self.birds, top.get("birds"), {t.name for t in targets} | intruder_names, default=())
+        lighting = checked(self.lighting, top.get("lighting"))
+        if lighting is not None and fields["camera_world"] is not None:
+            fields["camera_world"] = dataclasses.replace(fields["camera_world"], lighting=lighting)
         if problems:
             raise ScenarioError("\n".join(problems))
         return Scenario(name=name, home=home, home_heading_deg=heading, **fields)
@@ -346,7 +368,7 @@ class _Parser:
     _RADAR_KEYS = ("lat_deg", "lon_deg", "alt_m", "yaw_deg", "pitch_deg", "roll_deg", "fov_az_deg", "fov_el_deg",
                    "min_range_m", "max_range_m", "rate_hz", "sigma_range_m", "sigma_az_deg", "sigma_el_deg",
                    "sigma_vel_mps", "vel_tau_s", "pd", "coast_s", "confidence_tau_s", "failures", "clutter",
-                   "off_at_s", "udp_host", "udp_port", "radar_id")
+                   "off_at_s", "udp_host", "udp_port", "radar_id", "reference_rcs_m2", "pfa")
 
     def radar(self, d: Any) -> RadarConfig | None:
         if d is None:
@@ -383,6 +405,9 @@ class _Parser:
         if not isinstance(rid, str) or not rid:
             raise self.fail("radar.radar_id", "a non-empty string", rid)
         off = m.get("off_at_s")
+        pfa = num("pfa", dflt.pfa)
+        if not 0.0 < pfa < 1.0:
+            raise self.fail("radar.pfa", "a false-alarm probability in (0, 1)", pfa)
         return RadarConfig(
             position=GeoPoint(lat, lon, num("alt_m", 0.0)),
             yaw_rad=angle("yaw_deg", 0.0), pitch_rad=angle("pitch_deg", 0.0), roll_rad=angle("roll_deg", 0.0),
@@ -398,8 +423,21 @@ class _Parser:
             failures=self._radar_part(m.get("failures"), "radar.failures", RadarFailureRates),
             clutter=self._radar_part(m.get("clutter"), "radar.clutter", RadarClutter),
             off_at_s=None if off is None else num("off_at_s", 0.0, 0.0),
+            reference_rcs_m2=self._positive(m, "reference_rcs_m2", "radar", dflt.reference_rcs_m2), pfa=pfa,
             udp_host=host, udp_port=port, radar_id=rid,
         )
+
+    def _signature(self, d: Any, path: str) -> RadarSignature:
+        """An object's own ``radar:`` mapping (rcs_m2, pd, drop_per_s)."""
+        if not isinstance(d, Mapping):
+            raise self.fail(path, "a mapping with rcs_m2, pd, drop_per_s", d)
+        m = self.mapping(d, path, ("rcs_m2", "pd", "drop_per_s"))
+        rcs = None if m.get("rcs_m2") is None else self._positive(m, "rcs_m2", path, 0.0)
+        pd = None if m.get("pd") is None else self.number(m, "pd", path, None, 0.0)
+        if pd is not None and pd > 1.0:
+            raise self.fail(f"{path}.pd", "a probability in [0, 1]", pd)
+        drop = None if m.get("drop_per_s") is None else self.number(m, "drop_per_s", path, None, 0.0)
+        return RadarSignature(rcs, pd, drop)
 
     def _radar_part(self, d: Any, path: str, cls: type) -> Any:
         names = tuple(f.name for f in dataclasses.fields(cls))
@@ -417,7 +455,7 @@ class _Parser:
         out, names = [], set()
         for i, item in enumerate(d):
             path = f"targets[{i}]"
-            m = self.mapping(item, path, ("name", "kind") + self._SHAPES + ("start_s", "end_s"))
+            m = self.mapping(item, path, ("name", "kind") + self._SHAPES + ("start_s", "end_s", "radar"))
             name = m.get("name")
             if not isinstance(name, str) or not name or name == "ownship" or name in names:
                 raise self.fail(f"{path}.name", "a unique non-empty name other than 'ownship'", name)
@@ -431,7 +469,12 @@ class _Parser:
             start = self.number(m, "start_s", path, 0.0, 0.0)
             end = None if m.get("end_s") is None else self.number(m, "end_s", path, None, start)
             shape = getattr(self, f"_{shapes[0]}")(m[shapes[0]], f"{path}.{shapes[0]}")
-            out.append(ScriptedTarget(name, shape, start, end, kind))
+            radar = None
+            if "radar" in m:
+                if kind in RADAR_BLIND_KINDS:
+                    raise self.fail(f"{path}.radar", f"no radar mapping: the radar does not see a {kind} target")
+                radar = self._signature(m["radar"], f"{path}.radar")
+            out.append(ScriptedTarget(name, shape, start, end, kind, radar))
         return tuple(out)
 
     _SHAPES = ("circle", "waypoints", "static")
@@ -553,8 +596,8 @@ class _Parser:
         out, names, sysids = [], set(taken), {vehicle_sysid}
         for i, item in enumerate(d):
             path = f"intruders[{i}]"
-            m = self.mapping(item, path, ("name", "sysid", "start_enu_m", "start_s", "telemetry_hz", "limits", "airframe")
-                             + TRAJECTORY_KINDS)
+            m = self.mapping(item, path, ("name", "sysid", "start_enu_m", "start_s", "telemetry_hz", "limits", "airframe",
+                                          "radar", "manoeuvres") + TRAJECTORY_KINDS)
             name = m.get("name")
             if not isinstance(name, str) or not name or name == "ownship" or name in names:
                 raise self.fail(f"{path}.name", "a name not used by another target or intruder, other than 'ownship'",
@@ -579,9 +622,106 @@ class _Parser:
             airframe = m.get("airframe", "phantom")
             if airframe not in INTRUDER_AIRFRAMES:
                 raise self.fail(f"{path}.airframe", "one of " + ", ".join(INTRUDER_AIRFRAMES), airframe)
-            out.append(IntruderSpec(name, sysid, start, kind, params, self.number(m, "start_s", path, 0.0, 0.0),
-                                    self._positive(m, "telemetry_hz", path, 5.0), limits, airframe))
+            start_s = self.number(m, "start_s", path, 0.0, 0.0)
+            manoeuvres = self._manoeuvres(m.get("manoeuvres"), f"{path}.manoeuvres", start_s, limits)
+            radar = None if "radar" not in m else self._signature(m["radar"], f"{path}.radar")
+            out.append(IntruderSpec(name, sysid, start, kind, params, start_s,
+                                    self._positive(m, "telemetry_hz", path, 5.0), limits, airframe, manoeuvres, radar))
         return tuple(out)
+
+    _MANOEUVRE_KEYS = {
+        "turn": ("heading_deg", "duration_s", "speed_mps"),
+        "dash": ("heading_deg", "duration_s", "speed_mps"),
+        "climb": ("to_alt_m", "duration_s", "speed_mps"),
+        "dive": ("to_alt_m", "duration_s", "speed_mps"),
+    }
+    _MANOEUVRE_REQUIRED = {"turn": ("heading_deg", "duration_s"), "dash": ("heading_deg", "duration_s"),
+                           "climb": ("to_alt_m",), "dive": ("to_alt_m",)}
+
+    def _manoeuvres(self, d: Any, path: str, start_s: float, limits: IntruderLimits) -> tuple[Manoeuvre, ...]:
+        """An intruder's ``manoeuvres``: in time order, none before it starts, none overlapping the last one's duration."""
+        if d is None:
+            return ()
+        if not isinstance(d, list):
+            raise self.fail(path, "a list of manoeuvres {at_s, kind, ...}", d)
+        out: list[Manoeuvre] = []
+        for i, item in enumerate(d):
+            at = f"{path}[{i}]"
+            if not isinstance(item, Mapping):
+                raise self.fail(at, "a mapping", item)
+            kind = item.get("kind")
+            if kind not in MANOEUVRE_KINDS:
+                raise self.fail(f"{at}.kind", "one of " + ", ".join(MANOEUVRE_KINDS), kind)
+            m = self.mapping(item, at, ("at_s", "kind") + self._MANOEUVRE_KEYS[kind])
+            for key in self._MANOEUVRE_REQUIRED[kind]:
+                if key not in m:
+                    raise self.fail(f"{at}.{key}", f"a number (required for a {kind})")
+            t0 = self.number(m, "at_s", at, None, 0.0)
+            if t0 < start_s:
+                raise self.fail(f"{at}.at_s", f"a time >= the intruder's start_s ({start_s})", t0)
+            prev = out[-1] if out else None
+            if prev is not None and prev.end_s is not None and t0 < prev.end_s:
+                raise self.fail(f"{at}.at_s", f"a time >= the end of the previous manoeuvre ({prev.end_s})", t0)
+            if prev is not None and t0 <= prev.at_s:
+                raise self.fail(f"{at}.at_s", f"a time after the previous manoeuvre's at_s ({prev.at_s})", t0)
+            dur = None if m.get("duration_s") is None else self._positive(m, "duration_s", at, 0.0)
+            speed = None if m.get("speed_mps") is None else self._positive(m, "speed_mps", at, 0.0)
+            limit = {"turn": limits.speed_h_mps, "dash": limits.speed_h_mps, "climb": limits.speed_up_mps,
+                     "dive": limits.speed_down_mps}[kind]
+            if speed is not None and speed > limit:
+                raise self.fail(f"{at}.speed_mps", f"a speed <= the intruder's limit ({limit} m/s)", speed)
+            heading = None if "heading_deg" not in m else self.number(m, "heading_deg", at, None)
+            alt = None if "to_alt_m" not in m else self.number(m, "to_alt_m", at, None, 0.0)
+            out.append(Manoeuvre(t0, kind, dur, heading, speed, alt))
+        return tuple(out)
+
+    # -- birds near a target, and the light (sitl/scenarios/README.md) -----------------------------------
+
+    def birds(self, d: Any, names: set[str]) -> tuple[BirdSpec, ...]:
+        if d is None:
+            return ()
+        if not isinstance(d, list):
+            raise self.fail("birds", "a list of birds {near, offset_enu_m, ...}", d)
+        out = []
+        for i, item in enumerate(d):
+            path = f"birds[{i}]"
+            if not isinstance(item, Mapping):
+                raise self.fail(path, "a mapping", item)
+            m = self.mapping(item, path, ("near", "offset_enu_m", "count", "spread_m", "speed_mps", "start_s", "end_s",
+                                          "radar"))
+            near = m.get("near")
+            if not isinstance(near, str) or near not in names:
+                known = ", ".join(sorted(n for n in names if isinstance(n, str))) or "none in this scenario"
+                raise self.fail(f"{path}.near", f"the name of a target or intruder ({known})", near)
+            if "offset_enu_m" not in m:
+                raise self.fail(f"{path}.offset_enu_m", "a list of 3 numbers (required key is missing)")
+            offset = self._vector(m["offset_enu_m"], f"{path}.offset_enu_m")
+            count = m.get("count", 1)
+            if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= MAX_FLOCK:
+                raise self.fail(f"{path}.count", f"an integer 1..{MAX_FLOCK}", count)
+            start = self.number(m, "start_s", path, 0.0, 0.0)
+            end = None if m.get("end_s") is None else self.number(m, "end_s", path, None, start)
+            radar = None if "radar" not in m else self._signature(m["radar"], f"{path}.radar")
+            out.append(BirdSpec(near, offset, count, self._positive(m, "spread_m", path, 5.0),
+                                self._positive(m, "speed_mps", path, 8.0), start, end, radar))
+        return tuple(out)
+
+    def lighting(self, d: Any) -> LightingOverride | None:
+        if d is None:
+            return None
+        if not isinstance(d, Mapping):
+            raise self.fail("lighting", "a mapping with sun_elevation_deg, sun_azimuth_deg, overcast", d)
+        m = self.mapping(d, "lighting", ("sun_elevation_deg", "sun_azimuth_deg", "overcast"))
+        el = None if "sun_elevation_deg" not in m else self.number(m, "sun_elevation_deg", "lighting", None)
+        if el is not None and not 0.0 <= el <= 90.0:
+            raise self.fail("lighting.sun_elevation_deg", "an elevation in [0, 90]", el)
+        az = None if "sun_azimuth_deg" not in m else self.number(m, "sun_azimuth_deg", "lighting", None)
+        overcast = None if "overcast" not in m else self.number(m, "overcast", "lighting", None, 0.0)
+        if overcast is not None and overcast > 1.0:
+            raise self.fail("lighting.overcast", "a number in [0, 1] (0 clear, 1 fully overcast)", overcast)
+        if el is None and az is None and overcast is None:
+            return None
+        return LightingOverride(el, None if az is None else az % 360.0, overcast)
 
     def _trajectory(self, kind: str, d: Any, path: str, start: tuple[float, float, float]) -> dict:
         m = self.mapping(d, path, self._TRAJECTORY_KEYS[kind])

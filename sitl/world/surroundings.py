@@ -7,6 +7,11 @@ airborne, as ``ownship``), the scripted targets present and the intruders, and s
 JSON datagram to every consumer (a UDP sender when the scenario names a port, the rehearsal's
 in-process queue). Each intruder's pilot and the radar draw from their own random streams, seeded
 from the run's seed, so the surroundings are the same whichever autopilot flies.
+
+The scenario's ``birds`` fly here too (:class:`~sitl.world.intruders.BirdFlock`, each from a stream of
+its own): the radar sees each flock as one object labelled ``bird-<near>-<index>``, and the rendered
+camera draws its birds where they are (:meth:`Surroundings.bird_poses`). The radar knows each
+object's own signature (``radar:`` of a target, an intruder or a bird entry).
 """
 
 from __future__ import annotations
@@ -17,7 +22,9 @@ import numpy as np
 
 from chaser_bt.geo import LocalFrame
 from chaser_bt.radar.report import encode_scan
-from sitl.world.intruders import Intruder
+from sitl.world.camera.distractors import BirdPose
+from sitl.world.intruders import BirdFlock, Intruder
+from sitl.world.radar.config import RadarSignature
 from sitl.world.radar.model import GroundRadar, ScanTruth
 from sitl.world.radar.udp import RadarUdpSender
 from sitl.world.scenario import Scenario
@@ -38,21 +45,36 @@ class Surroundings:
         frame = LocalFrame(scenario.home)
         self.intruders = [Intruder(spec, np.random.default_rng([seed, 0x1d7, k]), frame)
                           for k, spec in enumerate(scenario.intruders)]
+        anchors = {tgt.name: tgt.path for tgt in scenario.targets} | {i.name: i for i in self.intruders}
+        self.birds = [BirdFlock(spec, f"bird-{spec.near}-{k}", anchors[spec.near], np.random.default_rng([seed, 0xb1d5, k]))
+                      for k, spec in enumerate(scenario.birds)]
         self.radar: GroundRadar | None = None
         self.radar_truth: ScanTruth | None = None  # scoring only: the last scan's track -> object
         self._radar_consumers: list[Callable[[bytes], None]] = []
         self._next_scan_s = 0.0
         if scenario.radar is not None:
-            self.radar = GroundRadar(scenario.radar, frame, np.random.default_rng([seed, 0x5ada7]))
+            self.radar = GroundRadar(scenario.radar, frame, np.random.default_rng([seed, 0x5ada7]), self._signatures())
             if scenario.radar.udp_port is not None:
                 self._radar_consumers.append(RadarUdpSender(scenario.radar.udp_host, scenario.radar.udp_port))
+
+    def _signatures(self) -> dict[str, RadarSignature]:
+        """The objects with a radar signature of their own: object name -> signature."""
+        sigs: dict[str, RadarSignature | None] = {tgt.name: tgt.radar for tgt in self.scenario.targets}
+        sigs.update({i.name: i.spec.radar for i in self.intruders})
+        sigs.update({b.label: b.spec.flock_signature for b in self.birds})
+        return {k: v for k, v in sigs.items() if v is not None}
 
     def add_radar_consumer(self, consumer: Callable[[bytes], None]) -> None:
         """Hand every radar datagram to ``consumer`` too (e.g. a ``QueueDatagramSource.push``)."""
         self._radar_consumers.append(consumer)
 
+    def bird_poses(self, t: float) -> tuple[BirdPose, ...]:
+        """The scenario's birds present at ``t``, for the camera (every bird of every flock)."""
+        return tuple(pose for flock in self.birds if flock.present(t) for pose in flock.poses(t))
+
     def radar_objects(self, t: float, truth) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """What the radar can see at ``t``: the vehicle (``truth``) while airborne, the scripted targets present, the intruders."""
+        """What the radar can see at ``t``: the vehicle (``truth``) while airborne, the scripted targets present, the
+        intruders, the scenario's birds present (one object a flock)."""
         objs = {}
         if not truth.on_ground:
             objs["ownship"] = (np.asarray(truth.pos_enu, float), np.asarray(truth.vel_enu, float))
@@ -61,6 +83,9 @@ class Surroundings:
                 objs[tgt.name] = (tgt.path.position_enu(t), tgt.path.velocity_enu(t))
         for intruder in self.intruders:
             objs[intruder.name] = (intruder.pos.copy(), intruder.vel.copy())
+        for flock in self.birds:
+            if flock.present(t):
+                objs[flock.label] = flock.centre(t)
         return objs
 
     def step(self, t: float, dt: float, truth: Callable[[], object]) -> None:
@@ -98,6 +123,10 @@ class InSurroundings:
     @property
     def intruders(self) -> list[Intruder]:
         return self.surroundings.intruders
+
+    @property
+    def birds(self) -> list[BirdFlock]:
+        return self.surroundings.birds
 
     @property
     def radar(self) -> GroundRadar | None:

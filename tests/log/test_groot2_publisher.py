@@ -266,12 +266,12 @@ def test_run_closes_the_monitor_when_the_flight_cannot_start(tmp_path, capsys):
 def test_groot2_port_defaults_to_btcpps(monkeypatch):
     from chaser_bt.cli import _parser
 
-    args = _parser(["rehearse"]).parse_args(["rehearse", "t.xml", "--scenario", "s.yaml", "--groot2"])
+    args = _parser(["rehearse"]).parse_args(["rehearse", "trees/t.xml", "--scenario", "sitl/s.yaml", "--groot2"])
     assert (args.groot2, args.groot2_host) == (1667, "127.0.0.1")
-    args = _parser(["run"]).parse_args(["run", "t.xml", "--connect", "tcp:h:1", "--groot2", "5000",
+    args = _parser(["run"]).parse_args(["run", "trees/t.xml", "--connect", "tcp:h:1", "--groot2", "5000",
                                         "--groot2-host", "0.0.0.0"])
     assert (args.groot2, args.groot2_host) == (5000, "0.0.0.0")
-    assert _parser(["run"]).parse_args(["run", "t.xml", "--connect", "tcp:h:1"]).groot2 is None
+    assert _parser(["run"]).parse_args(["run", "trees/t.xml", "--connect", "tcp:h:1"]).groot2 is None
 
 
 def test_run_serves_groot2_while_flying_the_simulator(tmp_path, capsys):

@@ -95,9 +95,10 @@ def test_gated_recovers_after_a_swap_on_velocity_and_position():
         return {1: OWN, 2: OTHER} if t <= 20.0 else {1: OTHER, 2: OWN}
 
     out = run(tracks, 23.0, GatedCorrelator())
-    # Rejecting track 1 needs two inconsistent reports (20.25, 20.5); track 2 is confirmed by then.
-    assert out[20.25][0] != 2 and out[20.5] == (2, 2)
-    assert all(out[t] == (2, 2) for t in out if t >= 20.5)
+    # Rejecting track 1 needs two inconsistent reports (20.25, 20.5). Track 2 was seen 50 m from our
+    # track: another object, reclaimed only by four reports in a row on our GPS (20.25 to 21.0).
+    assert out[20.25][0] != 2 and out[20.5] == (None, None) and out[20.75][0] is None
+    assert all(out[t] == (2, 2) for t in out if t >= 21.0)
 
 
 def test_gated_files_duplicates_under_the_ownship():
@@ -105,6 +106,24 @@ def test_gated_files_duplicates_under_the_ownship():
     run(lambda t: {1: OWN, 3: OWN + 0.5, 6: OTHER}, 2.0, c)
     a = c.associate(2.0)
     assert a.associated_id == 1 and a.ownship_ids == {1, 3} and a.unassociated_ids == (6,)
+
+
+def test_gated_never_takes_a_drone_seen_beside_us_for_us_when_our_track_drops():
+    """A drone 13 m away flies with us (sigma 8 m: inside the 32 m gate). While our track (1) is
+    reported, track 2 is seen beside it: another object. Our track drops at t = 3 s; track 2 stays in
+    the picture, unassociated, until our new track (3) appears at t = 4 s and is taken."""
+    beside = np.array([13.0, 0.0, 0.0])
+    c, out = GatedCorrelator(), {}
+    for k in range(0, 25):
+        t = k / 4
+        c.add_ownship(t, OWN, np.zeros(3))
+        tracks = {1: OWN + 0.5, 2: beside} if t < 3.0 else ({2: beside} if t < 4.0 else {2: beside, 3: OWN - 0.5})
+        ids = list(tracks)
+        c.add_tracks(TrackPoints.build(t, ids, [tracks[i] for i in ids], np.zeros((len(ids), 3)), 8.0))
+        out[t] = c.associate(t)
+    assert out[2.75].associated_id == 1 and out[2.75].unassociated_ids == (2,)
+    assert all(2 not in out[t].ownship_ids and 2 in out[t].unassociated_ids for t in out if t >= 0.5)
+    assert out[4.25].associated_id == 3 and out[6.0].ownship_ids == {3}
 
 
 def test_make_correlator_by_name():

@@ -23,6 +23,14 @@ association for as long. This method looks at each track's last few reports inst
   the radar's duplicate tracks of our own drone are filtered out of the mission's picture as well
   (a candidate further away is another drone inside the gate, not us).
 
+* a track reported at the same time as the associated one and at least ``ambiguity_m`` from it is
+  another object (the drone we follow, a bird), unless it fits the GPS better than the associated
+  one by ``switch_margin`` (then the association may be the mistake): it is never taken for the ownship on the gate alone,
+  which at long range is tens of metres wide. Only the ownship's own telemetry reclaims it: its last
+  ``reject_window`` reports consistent and their mean offset from the GPS under ``floor_m`` (an id
+  swap with our own track). So when our track drops, a co-moving intruder a dozen metres away is not
+  taken for us, and it stays in the mission's picture.
+
 The velocity gate is what catches a swap within a scan or two: the ids exchange where the two
 drones are close in position, but they rarely fly the same velocity there.
 """
@@ -74,6 +82,11 @@ class GatedCorrelator(TrackCorrelator):
         self.switch_margin = switch_margin
         self._candidates: frozenset[int] = frozenset()
         self._latest: dict[int, np.ndarray] = {}
+        self._apart: set[int] = set()  # ids seen beside the ownship's track: other objects
+
+    def reset(self) -> None:
+        super().reset()
+        self._candidates, self._latest, self._apart = frozenset(), {}, set()
 
     def _consistency(self, w: CorrelationWindow) -> tuple[np.ndarray, np.ndarray]:
         """Per report: consistent with the ownship?, and its normalised residual."""
@@ -108,12 +121,13 @@ class GatedCorrelator(TrackCorrelator):
             last_ok = ok[idx]
             tail = last_ok[-self.confirm_n:]
             recent_cost[tid] = float(cost[idx[-self.confirm_n:]].mean())
-            if tail.size == self.confirm_n and tail.all():
+            if tail.size == self.confirm_n and tail.all() and (tid not in self._apart or self._reclaimed(w, ok, s, e, order)):
                 candidates[tid] = recent_cost[tid]
             if (~last_ok[-self.reject_window:]).sum() >= self.reject_n:
                 rejected.add(tid)
         self._candidates = frozenset(candidates)
         self._latest = latest
+        self._note_apart(latest, last_t, recent_cost)
         a = self.associated_id
         if a is not None and a in set(w.active_ids.tolist()) and a not in rejected:
             fresher = [k for k in candidates if k != a and last_t[k] > last_t[a]]
@@ -127,6 +141,27 @@ class GatedCorrelator(TrackCorrelator):
         if not clear:
             return None
         return min(clear, key=lambda k: (w.t - last_t[k] > self.hold_s, clear[k], k))
+
+    def _note_apart(self, latest: dict[int, np.ndarray], last_t: dict[int, float], cost: dict[int, float]) -> None:
+        """Remember the tracks reported beside the associated one, at least ``ambiguity_m`` from it and
+        no closer to the GPS than it (a track that fits better may be ours: the association may be wrong)."""
+        self._apart &= set(latest)  # ended tracks: radar ids are not reused
+        a = self.associated_id
+        if a is None or a not in latest:
+            return
+        for k, pos in latest.items():
+            if (k != a and abs(last_t[k] - last_t[a]) <= 0.5 and cost[k] >= cost[a] - self.switch_margin
+                    and float(np.linalg.norm(pos - latest[a])) >= self.ambiguity_m):
+                self._apart.add(k)
+
+    def _reclaimed(self, w: CorrelationWindow, ok: np.ndarray, start: int, end: int, order: np.ndarray) -> bool:
+        """Whether the ownship's telemetry says a track seen apart is now ours: its last
+        ``reject_window`` reports consistent with the GPS and their mean offset from it under ``floor_m``."""
+        idx = order[max(start, end - self.reject_window):end]
+        if idx.size < self.reject_window or not ok[idx].all():
+            return False
+        offset = (w.points.position[idx] - w.gps_position[idx]).mean(axis=0)
+        return float(np.linalg.norm(offset)) < self.floor_m
 
     def _ambiguous(self, tid: int, latest: dict[int, np.ndarray]) -> bool:
         """Another track that is not a candidate sits close to candidate ``tid`` (a close pass)."""

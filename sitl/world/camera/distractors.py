@@ -3,6 +3,9 @@ distant aircraft, and specks of dirt on the lens.
 
 They are negatives: drawn into the frame, never labelled. Birds and aircraft move on closed-form
 paths in time (a circle, a straight leg), so a frame depends only on its time and the world's seed.
+A scenario's own birds (``birds:``, :class:`sitl.world.intruders.BirdFlock`) fly in the simulator,
+where the radar sees them too; a shot carries them as :class:`BirdPose` and the renderer draws them
+the same way (:func:`draw_bird_poses`), unlabelled too.
 """
 
 from __future__ import annotations
@@ -14,9 +17,59 @@ from typing import Callable, Sequence
 import cv2
 import numpy as np
 
-__all__ = ["Bird", "Birds", "Aircraft", "LensSpecks", "make_birds", "make_aircraft"]
+__all__ = ["Bird", "Birds", "BirdPose", "BIRD_LOOKS", "Aircraft", "LensSpecks", "make_birds", "make_aircraft",
+           "draw_bird_poses"]
 
 Projector = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]  # ENU (N, 3) -> pixels (N, 2), depth (N,)
+
+#: ((wing span m, flap Hz), BGR colour) of a gull, a crow and a small bird.
+BIRD_LOOKS = (((1.2, 3.0), (200, 200, 205)), ((0.9, 4.0), (35, 35, 40)), ((0.3, 10.0), (50, 55, 60)))
+
+
+@dataclass(frozen=True)
+class BirdPose:
+    """A bird where the simulator has it now: body position and velocity (ENU), wing span, flapping
+    rate and phase, BGR colour."""
+
+    position_enu: tuple[float, float, float]
+    velocity_enu: tuple[float, float, float]
+    span_m: float
+    flap_hz: float
+    phase: float
+    colour: tuple[int, int, int]
+
+
+def _draw_wings(img: np.ndarray, project: Projector, focal_px: float, t: float, body: np.ndarray, side: np.ndarray,
+                half_span: np.ndarray, flap_hz: np.ndarray, phase: np.ndarray, spans: Sequence[float],
+                colours: Sequence[tuple[int, int, int]]) -> None:
+    """Draw birds at ``body`` (n, 3) as polylines wing tip - body - wing tip, the wings along ``side``
+    (n, 3 unit vectors across the flight) flapping up and down."""
+    flap = 0.7 * np.sin(2.0 * np.pi * flap_hz * t + 7.0 * phase)
+    across = (half_span * np.cos(flap))[:, None] * side
+    lift = np.column_stack([np.zeros((len(body), 2)), half_span * np.sin(flap)])  # both wings up, then down
+    pts = np.stack([body - across + lift, body, body + across + lift], axis=1)  # (n, 3 points, 3)
+    px, z = project(pts.reshape(-1, 3))
+    px, z = px.reshape(-1, 3, 2), z.reshape(-1, 3)
+    ok = (z > 1.0).all(axis=1) & np.isfinite(px).all(axis=(1, 2))
+    ok[ok] &= np.abs(px[ok]).max(axis=(1, 2)) <= 1e5
+    for i in np.flatnonzero(ok):
+        width = max(int(round(0.12 * spans[i] * focal_px / z[i, 1])), 1)
+        cv2.polylines(img, [np.round(px[i] * 16).astype(np.int32)], False, colours[i], width, cv2.LINE_AA, 4)
+
+
+def draw_bird_poses(img: np.ndarray, project: Projector, focal_px: float, t: float, birds: Sequence[BirdPose]) -> None:
+    """Draw the simulator's birds at time ``t``: as :meth:`Birds.draw` does, the wings across the
+    horizontal velocity (east-west for a bird at rest)."""
+    if not birds:
+        return
+    body = np.array([b.position_enu for b in birds], float)
+    vel = np.array([b.velocity_enu for b in birds], float)
+    side = np.column_stack([vel[:, 1], -vel[:, 0], np.zeros(len(birds))])
+    norm = np.linalg.norm(side, axis=1)
+    side = np.where(norm[:, None] > 1e-6, side / np.maximum(norm, 1e-6)[:, None], np.array([1.0, 0.0, 0.0]))
+    _draw_wings(img, project, focal_px, t, body, side, np.array([0.5 * b.span_m for b in birds]),
+                np.array([b.flap_hz for b in birds]), np.array([b.phase for b in birds]),
+                [b.span_m for b in birds], [b.colour for b in birds])
 
 
 @dataclass(frozen=True)
@@ -73,18 +126,9 @@ class Birds:
         a = self._angles(t)[k]
         body = self.positions(t)[k]
         side = np.column_stack([np.cos(a), np.sin(a), np.zeros(len(k))])  # along the radius: across the flight
-        flap = 0.7 * np.sin(2.0 * np.pi * self.flap_hz[k] * t + 7.0 * self.phase[k])
-        across = (self.half_span[k] * np.cos(flap))[:, None] * side
-        lift = np.column_stack([np.zeros((len(k), 2)), self.half_span[k] * np.sin(flap)])  # both wings up, then down
-        pts = np.stack([body - across + lift, body, body + across + lift], axis=1)  # (n, 3 points, 3)
-        px, z = project(pts.reshape(-1, 3))
-        px, z = px.reshape(-1, 3, 2), z.reshape(-1, 3)
-        ok = (z > 1.0).all(axis=1) & np.isfinite(px).all(axis=(1, 2))
-        ok[ok] &= np.abs(px[ok]).max(axis=(1, 2)) <= 1e5
-        for i in np.flatnonzero(ok):
-            b = self.birds[k[i]]
-            width = max(int(round(0.12 * b.span_m * focal_px / z[i, 1])), 1)
-            cv2.polylines(img, [np.round(px[i] * 16).astype(np.int32)], False, b.colour, width, cv2.LINE_AA, 4)
+        birds = [self.birds[i] for i in k]
+        _draw_wings(img, project, focal_px, t, body, side, self.half_span[k], self.flap_hz[k], self.phase[k],
+                    [b.span_m for b in birds], [b.colour for b in birds])
 
 
 @dataclass(frozen=True)
@@ -134,7 +178,7 @@ class LensSpecks:
 
 def make_birds(rng: np.random.Generator, singles: int, flocks: int, half_extent_m: float) -> list[Bird]:
     """``singles`` birds and ``flocks`` flocks of 5-25 over a field ``half_extent_m`` each way."""
-    kinds = (((1.2, 3.0), (200, 200, 205)), ((0.9, 4.0), (35, 35, 40)), ((0.3, 10.0), (50, 55, 60)))
+    kinds = BIRD_LOOKS
     birds = []
 
     def one(centre, radius, speed, phase, k):

@@ -57,10 +57,12 @@ class GroundStyle:
     building_colours: tuple[tuple[int, int, int], ...] = ((60, 60, 150), (90, 90, 95), (150, 150, 155), (50, 70, 110))
 
 
-def make_field_ground(style: GroundStyle, seed: int, sun_azimuth_rad: float, size_px: int = 2048) -> GroundScene:
+def make_field_ground(style: GroundStyle, seed: int, sun_azimuth_rad: float, size_px: int = 2048,
+                      shadow_scale: float = 1.0) -> GroundScene:
     """A ``size_px`` x ``size_px`` ground (0.5 m a pixel) laid out by ``seed`` in ``style``.
 
-    Shadows fall away from ``sun_azimuth_rad`` (ENU, from east, counter-clockwise).
+    Shadows fall away from ``sun_azimuth_rad`` (ENU, from east, counter-clockwise), ``shadow_scale``
+    of their full length (an overcast sky shortens them; at 0 they hide under what casts them).
     """
     rng = np.random.default_rng([seed, 0x6e0])
     n = size_px
@@ -70,6 +72,8 @@ def make_field_ground(style: GroundStyle, seed: int, sun_azimuth_rad: float, siz
     _roads(img, rng, n, round(style.roads * km2), (70, 72, 74), (8, 16), lines=True)
     _roads(img, rng, n, round(style.tracks * km2), (95, 120, 140), (4, 7), lines=False)
     shadow = np.array([-math.cos(sun_azimuth_rad), math.sin(sun_azimuth_rad)])  # texture (col, row) direction
+    if shadow_scale != 1.0:
+        shadow = shadow * shadow_scale
     _fences(img, rng, n, round(style.fences * km2))
     _buildings(img, style, rng, n, round(style.buildings * km2), shadow)
     _cars(img, rng, n, round(style.cars * km2), shadow)

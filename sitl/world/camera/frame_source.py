@@ -8,6 +8,10 @@ A frame is taken in two steps: :meth:`SimulatorFrameSource.shot` notes the scene
 time (a :class:`Shot`: poses and blur, cheap), :meth:`SimulatorFrameSource.develop` draws it. A
 rehearsal may draw a shot later or in another process (:mod:`sitl.world.camera.render_process`) while the
 simulator flies on; the frame is the same.
+
+A simulator flying in :class:`~sitl.world.surroundings.Surroundings` (it has ``surroundings``) also
+shows the scenario's birds: each shot carries them where the simulator has them (the radar sees the
+same birds there), and they are drawn unlabelled, so the targets' labels are as without them.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from sitl.world.camera.renderer import (
     TargetPose,
     attitude_from_velocity,
 )
+from sitl.world.camera.distractors import BirdPose
 from sitl.world.camera.scene import GroundScene, make_ground
 from sitl.world.camera.world import CameraWorld
 
@@ -52,7 +57,8 @@ class Shot:
     """The scene at one instant, before it is drawn: what :meth:`SimulatorFrameSource.develop` needs.
 
     ``t`` is the frame's stamp (the mission clock's), ``sim_t`` the simulator's time (it places the
-    world's birds and aircraft and the camera's drift), ``index`` the frame's number.
+    world's birds and aircraft and the camera's drift), ``index`` the frame's number; ``birds`` the
+    scenario's birds present then.
     """
 
     t: float
@@ -62,6 +68,7 @@ class Shot:
     attitude: Rotation
     targets: tuple[TargetPose, ...]
     blur_px: float
+    birds: tuple[BirdPose, ...] = ()
 
 
 class SimulatorFrameSource:
@@ -129,7 +136,10 @@ class SimulatorFrameSource:
             rate = np.linalg.norm((att * self._last[1].inv()).as_rotvec()) / (sim_t - self._last[0])
             blur = rate * self.exposure_s * self.camera.focal_px[0]
         self._last = (sim_t, att)
-        out = Shot(t, sim_t, self._index, np.array(truth.pos_enu, float), att, tuple(tg.pose(sim_t) for tg in self.targets), blur)
+        surroundings = getattr(self.simulator, "surroundings", None)  # a bare test double has none
+        birds = surroundings.bird_poses(sim_t) if surroundings is not None else ()
+        out = Shot(t, sim_t, self._index, np.array(truth.pos_enu, float), att, tuple(tg.pose(sim_t) for tg in self.targets), blur,
+                   birds)
         self._index += 1
         return out
 
@@ -138,7 +148,7 @@ class SimulatorFrameSource:
         (the sensor noise is drawn from one stream)."""
         renderer = self.renderer  # first: a world made now brings its lighting
         frame = renderer.render(shot.position_enu, shot.attitude, list(shot.targets), self.lighting, self.rng,
-                                blur_px=shot.blur_px, t=shot.sim_t, regions=regions)
+                                blur_px=shot.blur_px, t=shot.sim_t, regions=regions, birds=shot.birds)
         self.last_labels = frame.labels  # for scoring only
         return Frame(shot.t, frame.image, shot.index, frame.views)
 

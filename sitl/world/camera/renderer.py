@@ -24,10 +24,10 @@ from scipy.spatial.transform import Rotation
 
 from chaser_bt.vision.camera import CameraModel
 from chaser_bt.vision.frame_source import Region
-from sitl.world.camera.lighting import Lighting
+from sitl.world.camera.lighting import Lighting, sun_share
 from sitl.world.camera.models import TargetModel, model_for
 from sitl.world.camera.props import boxes_reach
-from sitl.world.camera.distractors import Birds
+from sitl.world.camera.distractors import BirdPose, Birds, draw_bird_poses
 from sitl.world.camera.effects import vignette_map
 from sitl.world.camera.fields import DETAIL_M_PER_PX
 from sitl.world.camera.scene import GroundScene
@@ -174,9 +174,11 @@ class Renderer:
 
     def render(self, vehicle_pos_enu: np.ndarray, body_attitude: Rotation, targets: Sequence[TargetPose],
                lighting: Lighting, rng: np.random.Generator, blur_px: float = 0.0, blur_angle_rad: float = 0.0,
-               t: float = 0.0, regions: Sequence[Region] | None = None) -> RenderedFrame:
+               t: float = 0.0, regions: Sequence[Region] | None = None, birds: Sequence[BirdPose] = ()) -> RenderedFrame:
         """The frame seen from the vehicle's pose; ``blur_px`` is the motion-blur streak length and
-        ``t`` the time (s) that places a world's birds and aircraft and its camera's drift.
+        ``t`` the time (s) that places a world's birds and aircraft and its camera's drift. ``birds``
+        are the simulator's birds where it has them now, drawn (unlabelled) after the world's
+        distractors and before the targets.
 
         ``regions`` (x0, y0, x1, y1 pixel rectangles) asks for those parts only, as a camera reading out
         regions of interest: each is drawn with a margin wide enough for the blur and the JPEG blocks
@@ -198,7 +200,9 @@ class Renderer:
                 img[y0:y1, x0:x1] = self._background((x0, y0, x1, y1), r_ce, c_enu, sun, lighting)
         if self.world is not None:
             self._draw_world(img, r_ce, c_enu, t, views)
-        labels = self._draw_targets(img, r_ce, c_enu, targets, sun, lighting.brightness)
+        if birds:
+            draw_bird_poses(img, lambda p: self._project(r_ce, c_enu, p), self.camera.focal_px[0], t, birds)
+        labels = self._draw_targets(img, r_ce, c_enu, targets, sun, lighting.brightness, lighting.overcast)
         effects = self.world.effects if self.world is not None else None
         gains = _gain_table(effects.gains(t)) if effects is not None else None
         for x0, y0, x1, y1 in views:
@@ -259,7 +263,7 @@ class Renderer:
                                              borderValue=self._ground_mean)
         else:
             ground_img = self._filtered_ground(plane, dist, ground, size)
-        ground_img = cv2.convertScaleAbs(ground_img, alpha=0.55 + 0.55 * max(float(sun[2]), 0.0))
+        ground_img = cv2.convertScaleAbs(ground_img, alpha=0.55 + 0.55 * sun_share(float(sun[2]), lighting.overcast))
         weight = np.where(ground, np.exp(-dist / lighting.haze_m), 0.0).astype(np.float32)
         hor = np.asarray(lighting.sky_horizon, np.float32)
         sky_model = self.world.sky if self.world is not None else None
@@ -365,7 +369,7 @@ class Renderer:
             birds.draw(img, project, f, t, np.flatnonzero(seen))
 
     def _draw_targets(self, img: np.ndarray, r_ce: np.ndarray, c_enu: np.ndarray, targets: Sequence[TargetPose],
-                      sun: np.ndarray, brightness: float) -> tuple[TargetLabel, ...]:
+                      sun: np.ndarray, brightness: float, overcast: float = 0.0) -> tuple[TargetLabel, ...]:
         w, h = self.camera.width_px, self.camera.height_px
         fx, fy = self.camera.focal_px
         order = sorted(range(len(targets)), key=lambda i: -float(np.linalg.norm(np.asarray(targets[i].position_enu) - c_enu)))
@@ -373,7 +377,7 @@ class Renderer:
         for i in order:
             t = targets[i]
             drawn = draw_model(img, self._model(t.kind, t.variant), t.attitude.as_matrix(), np.asarray(t.position_enu, float),
-                               r_ce, c_enu, (fx, fy), sun, brightness)
+                               r_ce, c_enu, (fx, fy), sun, brightness, overcast)
             if drawn is None:
                 continue
             lo, hi, centre_px, rng_m = drawn
@@ -385,12 +389,13 @@ class Renderer:
 
 
 def draw_model(img: np.ndarray, m: _CompiledModel, rot: np.ndarray, pos: np.ndarray, r_ce: np.ndarray, c_enu: np.ndarray,
-               focal_px: tuple[float, float], sun: np.ndarray, brightness: float
+               focal_px: tuple[float, float], sun: np.ndarray, brightness: float, overcast: float = 0.0
                ) -> tuple[np.ndarray, np.ndarray, tuple[float, float], float] | None:
     """Draw compiled model ``m`` (body -> world rotation ``rot``, world position ``pos``) into ``img`` for a
     pinhole camera at ``c_enu`` (optical -> world ``r_ce``, principal point at the image centre), lit by
-    ``sun`` at ``brightness``. Returns the unclipped pixel extent (lo, hi), the centre pixel and the range
-    (m), or None when the target is behind the lens, too close or outside the image."""
+    ``sun`` at ``brightness`` under ``overcast`` (:func:`~sitl.world.camera.lighting.sun_share`). Returns the
+    unclipped pixel extent (lo, hi), the centre pixel and the range (m), or None when the target is behind
+    the lens, too close or outside the image."""
     h, w = img.shape[:2]
     fx, fy = focal_px
 
@@ -416,7 +421,7 @@ def draw_model(img: np.ndarray, m: _CompiledModel, rot: np.ndarray, pos: np.ndar
     if min(hi[0], float(w)) - max(lo[0], 0.0) < 1.0 or min(hi[1], float(h)) - max(lo[1], 0.0) < 1.0:
         return None
     # Lighting: top surfaces catch the sun, the rest sees sky light.
-    shade = brightness * (0.55 + 0.45 * max(0.0, float(rot[:, 2] @ sun)))
+    shade = brightness * (0.55 + 0.45 * sun_share(float(rot[:, 2] @ sun), overcast))
     _paint_model(img, m, ps, rs, pa, pb, rr, pd, sc[:, 2], 0.5 * (rc_a[:, 2] + rc_b[:, 2]), dc[..., 2].mean(axis=1), shade)
     cpx = px(centre_c)
     return lo, hi, (float(cpx[0]), float(cpx[1])), float(np.linalg.norm(centre_c))

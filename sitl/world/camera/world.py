@@ -9,7 +9,9 @@ original smooth procedural field (:func:`sitl.world.camera.scene.make_ground`) f
 flies over every kind of place, the held-out ones included.
 
 A scenario names its world with the ``camera_world`` key (``sitl/scenarios/README.md``); a seed
-lays out the ground, picks the weather and places every distractor.
+lays out the ground, picks the weather and places every distractor. A scenario's ``lighting`` keys
+(:class:`~sitl.world.camera.lighting.LightingOverride`, carried in :attr:`WorldSpec.lighting`) then
+replace the sun and the overcast the seed drew; everything else the seed draws stays as it was.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from sitl.world.camera.distractors import Aircraft, Bird, LensSpecks, make_aircr
 from sitl.world.camera.effects import CameraEffects
 from sitl.world.camera.fields import GroundStyle, make_field_ground
 from sitl.world.camera.props import PowerLine, make_power_lines
-from sitl.world.camera.lighting import Lighting
+from sitl.world.camera.lighting import Lighting, LightingOverride
 from sitl.world.camera.scene import GroundScene, make_ground
 from sitl.world.camera.sky import Sky, make_sky
 
@@ -102,13 +104,15 @@ ANY_FAMILY = "any"  # a family drawn per seed: family_of
 @dataclass(frozen=True)
 class WorldSpec:
     """A scenario's ``camera_world``: a family, the seed of its layout (None: the run's seed), and
-    which parts to leave out (clutter above the ground, distractors, camera effects)."""
+    which parts to leave out (clutter above the ground, distractors, camera effects); ``lighting``:
+    the scenario's ``lighting`` keys over what the seed draws (None: the seed's lighting)."""
 
     family: str = "plain"
     seed: int | None = None
     clutter: bool = True
     distractors: bool = True
     effects: bool = True
+    lighting: LightingOverride | None = None
 
 
 @dataclass(frozen=True)
@@ -130,7 +134,8 @@ def build_world(spec: WorldSpec, seed: int, width_px: int = 640, height_px: int 
     """The world of ``spec`` laid out by ``spec.seed`` (or ``seed``); the plain world without a seed of its
     own is the one field of :data:`PLAIN_FIELD_SEED`, whatever the run's seed."""
     if spec.family == "plain":
-        return CameraWorld("plain", plain_ground(PLAIN_FIELD_SEED if spec.seed is None else spec.seed), Lighting())
+        lighting = Lighting() if spec.lighting is None else spec.lighting.apply(Lighting())
+        return CameraWorld("plain", plain_ground(PLAIN_FIELD_SEED if spec.seed is None else spec.seed), lighting)
     s = spec.seed if spec.seed is not None else seed
     if spec.family == ANY_FAMILY:
         spec = replace(spec, family=family_of(s))
@@ -143,8 +148,17 @@ def build_world(spec: WorldSpec, seed: int, width_px: int = 640, height_px: int 
     lighting = Lighting(sun_azimuth_rad=sun_az, sun_elevation_rad=sun_el, brightness=float(rng.uniform(*fam.brightness)),
                         haze_m=float(rng.uniform(*fam.haze_m)), sky_zenith=fam.sky_zenith, sky_horizon=fam.sky_horizon,
                         noise_sigma=float(rng.uniform(2.0, 5.0)), jpeg_quality=int(rng.integers(70, 92)))
-    ground = _field_ground(spec.family, s, round(sun_az, 6))
-    sky = make_sky(rng, float(rng.uniform(*fam.cloud_cover)), fam.sky_zenith, fam.sky_horizon, fam.glare)
+    if spec.lighting is None:
+        ground = _field_ground(spec.family, s, round(sun_az, 6))
+        sky = make_sky(rng, float(rng.uniform(*fam.cloud_cover)), fam.sky_zenith, fam.sky_horizon, fam.glare)
+    else:  # the seed's draws as without the keys, then the keys over them
+        lighting = spec.lighting.apply(lighting)
+        overcast = lighting.overcast
+        ground = _field_ground(spec.family, s, round(lighting.sun_azimuth_rad, 6), 1.0 - overcast)
+        sky = make_sky(rng, float(rng.uniform(*fam.cloud_cover)), fam.sky_zenith, fam.sky_horizon, fam.glare)
+        if overcast > 0.0:
+            sky = replace(sky, cloud_cover=max(sky.cloud_cover, overcast), glare=sky.glare * (1.0 - overcast),
+                          zenith=lighting.sky_zenith, horizon=lighting.sky_horizon)
     half = ground.half_extent_m
     world = CameraWorld(spec.family, ground, lighting, sky)
     if spec.clutter:
@@ -172,6 +186,6 @@ def plain_ground(seed: int) -> GroundScene:
 
 
 @functools.lru_cache(maxsize=4)
-def _field_ground(family: str, seed: int, sun_azimuth_rad: float) -> GroundScene:
+def _field_ground(family: str, seed: int, sun_azimuth_rad: float, shadow_scale: float = 1.0) -> GroundScene:
     """Grounds take a second or two to make: campaigns in one process share them."""
-    return make_field_ground(FAMILIES[family].ground, seed, sun_azimuth_rad)
+    return make_field_ground(FAMILIES[family].ground, seed, sun_azimuth_rad, shadow_scale=shadow_scale)

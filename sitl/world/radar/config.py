@@ -13,7 +13,11 @@ from dataclasses import dataclass, field
 
 from chaser_bt.geo import GeoPoint
 
-__all__ = ["RadarFailureRates", "RadarClutter", "RadarConfig"]
+__all__ = ["RadarFailureRates", "RadarClutter", "RadarConfig", "RadarSignature", "REFERENCE_RCS_M2"]
+
+#: The radar cross-section (m^2) the configured ``pd`` holds for out to ``max_range_m``: the small end
+#: of a Phantom-class quadcopter (0.01-0.03 m^2), so such a drone anywhere in coverage is seen at ``pd``.
+REFERENCE_RCS_M2 = 0.01
 
 
 @dataclass(frozen=True)
@@ -68,6 +72,10 @@ class RadarConfig:
         coast_s: a track with no detection for this long ends.
         confidence_tau_s: track confidence rises as 1 - exp(-age / tau) (capped by object class).
         off_at_s: the radar stops (no more datagrams) at this simulator time; None = never.
+        reference_rcs_m2, pfa: the detection model of objects with a radar cross-section of their own
+            (:class:`RadarSignature`, :func:`sitl.world.radar.model.detection_probability`): an object
+            of ``reference_rcs_m2`` at ``max_range_m`` is detected with probability ``pd`` at the false
+            alarm probability ``pfa``.
         udp_host, udp_port: where to send datagrams; port None = no UDP.
         radar_id: the ``radar_id`` in every datagram.
     """
@@ -92,6 +100,25 @@ class RadarConfig:
     failures: RadarFailureRates = field(default_factory=RadarFailureRates)
     clutter: RadarClutter = field(default_factory=RadarClutter)
     off_at_s: float | None = None
+    reference_rcs_m2: float = REFERENCE_RCS_M2
+    pfa: float = 1e-6
     udp_host: str = "127.0.0.1"
     udp_port: int | None = None
     radar_id: str = "echoguard-sim"
+
+
+@dataclass(frozen=True)
+class RadarSignature:
+    """How one object shows on the radar: a scenario's per-object ``radar:`` mapping.
+
+    Attributes:
+        rcs_m2: radar cross-section; None: detected at ``pd`` wherever it is in coverage (today's
+            model). Given, the detection probability falls with range and RCS by the radar equation
+            (:func:`sitl.world.radar.model.detection_probability`).
+        pd: this object's detection probability in place of the radar's ``pd``; None: the radar's.
+        drop_per_s: this object's track drop rate in place of ``failures.drop_per_s``; None: the radar's.
+    """
+
+    rcs_m2: float | None = None
+    pd: float | None = None
+    drop_per_s: float | None = None

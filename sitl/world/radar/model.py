@@ -11,6 +11,11 @@ tracker's does). Everything random comes from the Generator passed in.
 
 The scan's truth (which object each track id follows) is returned beside the datagram for
 scoring only; it never goes on the wire.
+
+Objects may have a signature of their own (:class:`~sitl.world.radar.config.RadarSignature`: a
+radar cross-section, a detection probability, a drop rate). With a cross-section, detection follows
+the radar equation (:func:`detection_probability`); without one an object is detected at ``pd``
+wherever it is in coverage, as before signatures existed.
 """
 
 from __future__ import annotations
@@ -24,13 +29,41 @@ import numpy as np
 from chaser_bt.geo import LocalFrame
 from chaser_bt.radar.geometry import RadarPose, xyz_to_rae
 from chaser_bt.radar.report import RadarScan, TrackReport
-from sitl.world.radar.config import RadarConfig
+from sitl.world.radar.config import RadarConfig, RadarSignature
 
-__all__ = ["GroundRadar", "ScanTruth", "CLUTTER_LABEL", "BIRD_LABEL"]
+__all__ = ["GroundRadar", "ScanTruth", "CLUTTER_LABEL", "BIRD_LABEL", "detection_probability"]
 
 CLUTTER_LABEL = "clutter"
 BIRD_LABEL = "bird"
 _CONFIDENCE_CAP = {CLUTTER_LABEL: 0.3, BIRD_LABEL: 0.6}
+
+
+def detection_probability(config: RadarConfig, signature: RadarSignature | None, range_m: float) -> float:
+    """The chance one scan detects an object with ``signature`` at ``range_m``.
+
+    Without a cross-section it is ``signature.pd`` (or the radar's ``pd``) wherever the object is in
+    coverage. With one, the radar equation: the signal-to-noise ratio goes as ``rcs / r^4``, so
+    relative to an object of ``config.reference_rcs_m2`` at ``config.max_range_m`` it is
+
+        ratio = (rcs / reference_rcs) * (max_range / r)^4
+
+    and a Swerling I (fluctuating) target crosses a threshold set for false-alarm probability
+    ``pfa`` with ``Pd = pfa^(1 / (1 + SNR))``. The reference SNR is the one at which that gives
+    ``pd`` (``1 + SNR0 = ln pfa / ln pd``), so
+
+        Pd(r, rcs) = min(pd, pfa^(1 / (1 + SNR0 * ratio)))
+
+    ``pd`` caps it (the tracker's own limit): an object at least as strong as the reference is seen
+    at exactly ``pd``, a weaker or farther one less often, falling to ``pfa`` as the ratio goes to 0.
+    """
+    pd = config.pd if signature is None or signature.pd is None else signature.pd
+    if signature is None or signature.rcs_m2 is None:
+        return pd
+    ratio = signature.rcs_m2 / config.reference_rcs_m2 * (config.max_range_m / max(range_m, 1e-3)) ** 4
+    if ratio >= 1.0 or pd <= config.pfa or pd >= 1.0:
+        return pd  # as strong as the reference; or no signal to scale (pd at the false-alarm floor, or certain)
+    snr0 = math.log(config.pfa) / math.log(pd) - 1.0
+    return config.pfa ** (1.0 / (1.0 + snr0 * ratio))
 
 
 @dataclass
@@ -70,10 +103,14 @@ class GroundRadar:
         config: the radar.
         frame: the scenario's ENU frame (objects are given in it).
         rng: all randomness.
+        signatures: object name -> its signature (RCS, pd, drop rate); objects not named here have
+            the radar's ``pd`` and ``failures.drop_per_s``.
     """
 
-    def __init__(self, config: RadarConfig, frame: LocalFrame, rng: np.random.Generator) -> None:
+    def __init__(self, config: RadarConfig, frame: LocalFrame, rng: np.random.Generator,
+                 signatures: Mapping[str, RadarSignature] | None = None) -> None:
         self.config = config
+        self.signatures = dict(signatures or {})
         self.pose = RadarPose.from_geodetic(frame, config.position, config.yaw_rad, config.pitch_rad, config.roll_rad)
         self.rng = rng
         self.dt = 1.0 / config.rate_hz
@@ -113,7 +150,7 @@ class GroundRadar:
 
         # Drops: the track ends, the object is untracked for a moment, then gets a new id.
         for obj, tid in list(self._primary.items()):
-            if obj in objects and rng.random() < f.drop_per_s * self.dt:
+            if obj in objects and rng.random() < self._drop_per_s(obj) * self.dt:
                 self._end(tid)
                 self._reacquire_s[obj] = t + f.drop_gap_s
         self._swaps(objects)
@@ -121,7 +158,7 @@ class GroundRadar:
         reports: list[TrackReport] = []
         labels: dict[int, str] = {}
         for obj in sorted(seen):
-            detected = rng.random() < c.pd
+            detected = rng.random() < self._pd(obj, local)
             tid = self._primary.get(obj)
             if tid is None:
                 if not detected or t < self._reacquire_s.get(obj, -math.inf):
@@ -139,7 +176,7 @@ class GroundRadar:
                 continue
             if t >= tr.expires_s or tr.obj not in seen:
                 self._end(tr.track_id)
-            elif rng.random() < c.pd:
+            elif rng.random() < self._pd(tr.obj, local):
                 reports.append(self._report(tr, t, local))
                 labels[tr.track_id] = tr.obj
         for tr in list(self._tracks.values()):  # coast limit
@@ -153,6 +190,19 @@ class GroundRadar:
         return RadarScan(t, self.seq, tuple(reports), c.radar_id), ScanTruth(t, labels)
 
     # -- internals --------------------------------------------------------------------------
+
+    def _pd(self, obj: str, local: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> float:
+        """The detection probability of ``obj`` now (:func:`detection_probability`)."""
+        sig = self.signatures.get(obj)
+        if sig is None:
+            return self.config.pd
+        return detection_probability(self.config, sig, float(np.linalg.norm(local[obj][0])))
+
+    def _drop_per_s(self, obj: str) -> float:
+        sig = self.signatures.get(obj)
+        if sig is None or sig.drop_per_s is None:
+            return self.config.failures.drop_per_s
+        return sig.drop_per_s
 
     def _new_track(self, obj: str, t: float, vel_local: np.ndarray, duplicate: bool = False) -> _Track:
         tid = self._next_id

@@ -117,6 +117,12 @@ def test_summary_uses_linear_percentiles():
     assert summarise([])["median"] is None
 
 
+def test_following_another_drone_at_the_end_is_no_success():
+    row = {"outcome": "following", "t_acquire_s": 3.0, "followed_s": 60.0, "has_target": True}
+    assert SuccessRule()(row) and SuccessRule()({**row, "custody_at_end": True})
+    assert not SuccessRule()({**row, "custody_at_end": False})
+
+
 def test_aggregate_against_hand_worked_rows():
     base = {"target_in_fov_frac": 0.95, "followed_s": 30.0}
     rows = [
@@ -129,8 +135,12 @@ def test_aggregate_against_hand_worked_rows():
     agg = aggregate(rows, SuccessRule(min_followed_s=20.0))
     assert (agg["runs"], agg["success"], agg["success_frac"]) == (4, 2, 0.5)
     assert agg["outcomes"] == {"following": 3, "crashed": 1}
-    assert agg["by_scenario"] == {"a": {"runs": 2, "success": 2, "success_frac": 1.0},
-                                  "b": {"runs": 2, "success": 0, "success_frac": 0.0}}
+    a, b = agg["by_scenario"]["a"], agg["by_scenario"]["b"]
+    assert (a["runs"], a["success"], a["success_frac"]) == (2, 2, 1.0)
+    assert (b["runs"], b["success"], b["success_frac"]) == (2, 0, 0.0)
+    # Per scenario: medians of a's acquisitions (2, 6) and b's one (4); b's FOV shares 0.95 and 0.5.
+    assert (a["t_acquire_s_median"], b["t_acquire_s_median"], b["target_in_fov_frac_median"]) == (4.0, 4.0, 0.725)
+    assert a["custody_frac_median"] is None and a["target_switches"] is None
     air = agg["metrics"]["t_airborne_s"]
     assert (air["n"], air["median"], air["p25"], air["p75"]) == (4, 13.0, 11.5, 15.5)
     assert air["paper"] == 15.48 and air["median_beats_paper"] is True  # 13 s < 15.48 s

@@ -1,0 +1,61 @@
+"""``chaser-bt designate TRACK --to HOST:PORT --key FILE``: the operator designates the chase's target.
+
+Sends one signed ``designate`` command (:mod:`chaser_bt.ground.uplink`) to the aircraft's
+``GroundDesignation`` node; the radar behaviours then validate that track, or switch the chase to it.
+UDP has no answer: the aircraft's log and its ground stream (``/target/custody``'s target id in the
+status) say whether it was taken. ``--repeat N`` sends it N times, 0.2 s apart, against loss (each
+copy has a fresh timestamp; the aircraft takes the first and designating the same track again
+changes nothing). Exit 2 on a bad argument or key file, 1 when the datagram could not be sent.
+"""
+
+from __future__ import annotations
+
+import argparse
+import socket
+import sys
+import time
+
+from chaser_bt.cli_args import host_port, positive_int
+
+__all__ = ["add_command", "run_designate"]
+
+
+def add_command(subparsers) -> None:
+    """Add ``designate`` to the ``chaser-bt`` sub-commands."""
+    p = subparsers.add_parser("designate", help="designate the chase's target by radar track id, over the signed uplink",
+                              description="Designate the chase's target by its radar track id: one signed command to "
+                                          "the aircraft's GroundDesignation node (docs/ground.md).")
+    p.add_argument("track", metavar="TRACK_ID", type=int, help="the radar track id to designate (0 .. 2^31-1)")
+    p.add_argument("--to", required=True, type=host_port, metavar="HOST:PORT",
+                   help="the aircraft's uplink address (GroundDesignation's host and port; required)")
+    p.add_argument("--key", required=True, metavar="FILE",
+                   help="the uplink's key file, MAVLink signing's format (required: the uplink is never unsigned)")
+    p.add_argument("--link-id", type=int, default=0, metavar="N", help="this ground station's link id, 0-255 (default 0)")
+    p.add_argument("--repeat", type=positive_int, default=3, metavar="N",
+                   help="send it N times, 0.2 s apart, against loss (default 3)")
+    p.set_defaults(handler=run_designate)
+
+
+def run_designate(args: argparse.Namespace) -> int:
+    from chaser_bt.ground.auth import StreamSigner
+    from chaser_bt.ground.uplink import designate_datagram
+    from chaser_bt.vehicle.signing import load_key
+
+    try:
+        signer = StreamSigner(load_key(args.key), args.link_id)
+        datagrams = [designate_datagram(signer, args.track, seq=k) for k in range(args.repeat)]
+    except (OSError, ValueError) as e:
+        print(f"chaser-bt: designate: {e}", file=sys.stderr)
+        return 2
+    host, _, port = args.to.rpartition(":")
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            for k, d in enumerate(datagrams):
+                if k:
+                    time.sleep(0.2)
+                s.sendto(d, (host or "127.0.0.1", int(port)))
+    except OSError as e:
+        print(f"chaser-bt: designate: cannot send to {args.to}: {e}", file=sys.stderr)
+        return 1
+    print(f"designate track {args.track}: sent {len(datagrams)} signed command(s) to {args.to}")
+    return 0

@@ -1,0 +1,148 @@
+"""The ground's commands to the aircraft: an authenticated uplink beside the ground stream.
+
+The ground stream only goes down. An operator who sees, on the ground, that the chase holds the
+wrong drone designates another by its radar track id. That command must never come from anyone
+else, so the uplink is signed, always: the same HMAC header, key file and replay rules as the
+ground stream (:mod:`chaser_bt.ground.auth`), around a version-1 JSON message
+(:func:`chaser_bt.ground.protocol.json_datagram`) of type ``command``::
+
+    {"v": 1, "type": "command", "seq": 12, "t": 1767225600.2, "command": "designate", "track_id": 4117}
+
+``t`` is the sender's wall clock (informational; freshness is the signature's timestamp). Commands:
+
+=============  ==================================================================================
+``designate``  ``track_id`` (a radar track id, 0 .. 2^31-1): make that track's object the target
+=============  ==================================================================================
+
+:class:`UplinkReceiver` reads them from a UDP port without blocking: a datagram that is unsigned,
+forged, replayed, from a host not allowed, malformed or an unknown command is dropped and counted
+(:class:`UplinkCounters`), never raised. :func:`designate_datagram` builds one (the CLI's
+``chaser-bt designate`` sends it).
+"""
+
+from __future__ import annotations
+
+import logging
+import socket
+import time
+from dataclasses import dataclass, field
+from typing import Any, Iterable
+
+from chaser_bt.ground.auth import StreamSigner, StreamVerifier
+from chaser_bt.ground.protocol import json_datagram, parse_datagram
+
+__all__ = ["COMMANDS", "GroundCommand", "UplinkCounters", "UplinkReceiver", "designate_datagram", "parse_command"]
+
+log = logging.getLogger(__name__)
+
+COMMANDS = ("designate",)
+MAX_TRACK_ID = 2**31 - 1
+
+
+@dataclass(frozen=True)
+class GroundCommand:
+    """One command the aircraft believed: ``kind`` (``designate``), its ``track_id`` and ``seq``."""
+
+    kind: str
+    track_id: int
+    seq: int
+
+
+def parse_command(payload: bytes) -> GroundCommand:
+    """A verified payload as a command.
+
+    Raises:
+        ValueError: not a version-1 ``command`` message, an unknown command, or a bad field (named).
+    """
+    msg = parse_datagram(payload)
+    if not isinstance(msg, dict) or msg.get("type") != "command":
+        raise ValueError("not a command message")
+    kind = msg.get("command")
+    if kind not in COMMANDS:
+        raise ValueError(f"command {kind!r}: expected one of {', '.join(COMMANDS)}")
+    tid = msg.get("track_id")
+    if isinstance(tid, bool) or not isinstance(tid, int) or not 0 <= tid <= MAX_TRACK_ID:
+        raise ValueError(f"designate: track_id {tid!r}: expected an integer 0..{MAX_TRACK_ID}")
+    seq = msg.get("seq")
+    if isinstance(seq, bool) or not isinstance(seq, int):
+        raise ValueError(f"command: seq {seq!r}: expected an integer")
+    return GroundCommand(kind, tid, seq)
+
+
+def designate_datagram(signer: StreamSigner, track_id: int, seq: int = 0, unix_time: float | None = None) -> bytes:
+    """The signed datagram that designates radar track ``track_id``."""
+    if isinstance(track_id, bool) or not isinstance(track_id, int) or not 0 <= track_id <= MAX_TRACK_ID:
+        raise ValueError(f"track id {track_id!r}: expected an integer 0..{MAX_TRACK_ID}")
+    t = time.time() if unix_time is None else unix_time
+    return signer.sign(json_datagram("command", seq, t, {"command": "designate", "track_id": track_id}))
+
+
+@dataclass
+class UplinkCounters:
+    """What the receiver did with every datagram."""
+
+    accepted: int = 0
+    not_allowed: int = 0  # from a host outside ``allowed_hosts``
+    malformed: int = 0  # signed, but not a command the aircraft knows
+    auth: dict[str, int] = field(default_factory=dict)  # the verifier's drops: unsigned, forged, replayed
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"accepted": self.accepted, "not_allowed": self.not_allowed, "malformed": self.malformed, **self.auth}
+
+
+class UplinkReceiver:
+    """Ground commands from a UDP port, each verified with ``key``; :meth:`poll` never blocks.
+
+    Args:
+        host, port: where to listen (port 0: any free one, see :attr:`address`).
+        key: the 32-byte shared key (required: the uplink is never unsigned).
+        allowed_hosts: source addresses believed (empty: any that signs correctly).
+        max_per_poll: datagrams read per poll at most (a flood cannot stall the tick).
+    """
+
+    def __init__(self, host: str, port: int, key: bytes, *, allowed_hosts: Iterable[str] = (),
+                 max_per_poll: int = 64) -> None:
+        self.verifier = StreamVerifier(key)
+        self.allowed_hosts = frozenset(allowed_hosts)
+        self.max_per_poll = max_per_poll
+        self.counters = UplinkCounters()
+        self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._sock.setblocking(False)
+        self._sock.bind((host, port))
+
+    @property
+    def address(self) -> tuple[str, int]:
+        return self._sock.getsockname()
+
+    def poll(self) -> list[GroundCommand]:
+        """Every believable command that arrived since the last poll, oldest first."""
+        out: list[GroundCommand] = []
+        for _ in range(self.max_per_poll):
+            try:
+                data, (src, _) = self._sock.recvfrom(65535)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError as e:  # e.g. ICMP port unreachable reported on the socket: not a command
+                log.debug("uplink receive: %s", e)
+                break
+            if self.allowed_hosts and src not in self.allowed_hosts:
+                self.counters.not_allowed += 1
+                continue
+            payload = self.verifier.open(data)
+            c = self.verifier.counters
+            self.counters.auth = {"unsigned": c.unsigned, "forged": c.forged, "replayed": c.replayed}
+            if payload is None:
+                continue
+            try:
+                cmd = parse_command(payload)
+            except ValueError as e:
+                self.counters.malformed += 1
+                log.warning("uplink: dropped a signed datagram from %s: %s", src, e)
+                continue
+            self.counters.accepted += 1
+            log.info("uplink: %s track %d from %s (seq %d)", cmd.kind, cmd.track_id, src, cmd.seq)
+            out.append(cmd)
+        return out
+
+    def close(self) -> None:
+        self._sock.close()

@@ -1,0 +1,287 @@
+"""Custody of one designated intruder: the chase keeps the target it chose across radar drop-outs,
+new track ids and id swaps, and never drifts to another object on its own.
+
+A radar reports *tracks*, not objects: the target's track drops and returns under a new id, the
+radar swaps two ids in a close pass, and a bird or a second drone has a track of its own. The
+mission wants one *target*. :class:`Custody` is what the tree knows of it (blackboard
+``/target/custody``): the target's id (the track id it was designated under), the track carrying it
+now, when the radar last confirmed it and where it was going. :func:`track_custody` carries a
+custody over one radar picture (pure: the custody holds all the state), by these rules:
+
+* the carrying track keeps custody while its reports stay inside the target's gate (the position
+  predicted on the target's velocity, widened by a manoeuvre allowance, and that velocity); two
+  reports in a row outside it release the id (a swap, or a track that jumped to something else);
+* when no track carries the target it *coasts* on its last velocity; a track takes it over only
+  if its report falls inside the gate on position **and** velocity (not on confidence) and it is
+  not an object seen apart from the target while the target was tracked: another drone, a bird or
+  clutter seen beside the target is never the target, so a drop-out never hands custody to it. The
+  one exception is an id swap, the radar's own failure: a track that was within ``swap_m`` of the
+  target's and now fits the gate where the target's old id does not;
+* after ``max_coast_s`` without a confirmation the target is *lost* and the mission searches; only a
+  confident track that appeared after the loss, within ``max_gate_m`` of where the target was last,
+  takes it back (or the operator designates again, :func:`designate`).
+
+Changing the designated target is only ever :func:`designate`, and every change of the carrying
+track is a :class:`CustodyEvent` with a reason, for the log and the flight record.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from chaser_bt.cue import TargetCue
+from chaser_bt.radar.feed import RadarPicture, RadarTrack
+
+__all__ = ["CustodyParams", "CustodyEvent", "Custody", "designate", "track_custody"]
+
+
+@dataclass(frozen=True)
+class CustodyParams:
+    """How custody gates and coasts.
+
+    Args:
+        gate_sigma: the position gate in multiples of the predicted error.
+        floor_m: smallest position gate (calibration and GPS error, m).
+        accel_mps2: the manoeuvre allowance: how hard the target may accelerate while unseen (m/s^2;
+            a Phantom 4 in sport mode reaches 8).
+        vel_gate_mps: smallest velocity gate for a new track taking the target over (m/s).
+        carrier_vel_gate_mps: smallest velocity gate for the carrying track's next report (m/s): the
+            radar's tracker changes a track's velocity smoothly, so a jump means another object (a swap).
+        vel_lag_s: the radar tracker's velocity lags a manoeuvre by about this long (s): the velocity
+            gate allows ``accel_mps2`` over it too.
+        max_gate_m: the position gate never grows past this (m).
+        apart_m: a track seen this far from the target's, while both were reported, is another object.
+        swap_m: a track within this distance of the target's may be its id swap partner.
+        misses_to_release: reports in a row outside the gate that release the carrying id.
+        max_coast_s: unconfirmed this long, the target is lost (s).
+        reacquire_confidence: a lost target is taken back only by a new track at least this confident.
+        confidence_tau_s: custody confidence falls as exp(-unconfirmed / tau).
+    """
+
+    gate_sigma: float = 3.5
+    floor_m: float = 8.0
+    accel_mps2: float = 8.0
+    vel_gate_mps: float = 6.0
+    carrier_vel_gate_mps: float = 2.0
+    vel_lag_s: float = 1.0
+    max_gate_m: float = 200.0
+    apart_m: float = 20.0
+    swap_m: float = 15.0
+    misses_to_release: int = 2
+    max_coast_s: float = 15.0
+    reacquire_confidence: float = 0.8
+    confidence_tau_s: float = 4.0
+
+    def __post_init__(self) -> None:
+        for name in ("gate_sigma", "floor_m", "vel_gate_mps", "max_gate_m", "apart_m", "max_coast_s", "confidence_tau_s"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"CustodyParams.{name} must be positive")
+        if self.accel_mps2 < 0 or self.vel_lag_s < 0 or self.misses_to_release < 1:
+            raise ValueError("CustodyParams: accel_mps2 >= 0, vel_lag_s >= 0 and misses_to_release >= 1 are required")
+
+
+@dataclass(frozen=True)
+class CustodyEvent:
+    """A change in custody: ``kind`` is designated, handover, released, lost, reacquired or switched."""
+
+    t: float
+    kind: str
+    target_id: int
+    track_id: int | None
+    reason: str
+
+    def __str__(self) -> str:
+        track = "no track" if self.track_id is None else f"track {self.track_id}"
+        return f"target {self.target_id} {self.kind} ({track}): {self.reason}"
+
+
+@dataclass(frozen=True)
+class Custody:
+    """The designated target as the mission knows it.
+
+    Args:
+        target_id: the target's name: the track id it was designated under.
+        track_id: the radar track carrying it now; None while it coasts or is lost.
+        t_confirmed: mission time of the last radar report of it.
+        position_enu, velocity_enu, covariance_enu: that report (velocity zero if never measured).
+        designated_by: who chose it ("operator", "radar confidence 0.93", ...).
+        t_designated: when.
+        track_ids: every id that has carried it, in order.
+        apart_ids: ids of tracks seen apart from it (other objects), never handed custody.
+        refused_ids: ids whose first report after the target's last confirmation missed its gate: a
+            new track is judged where it appears, so a wider gate later does not let it in.
+        misses: reports in a row of the carrying track outside the gate.
+        lost: unconfirmed past ``max_coast_s``; only a new designation ends it.
+    """
+
+    target_id: int
+    track_id: int | None
+    t_confirmed: float
+    position_enu: np.ndarray
+    velocity_enu: np.ndarray
+    covariance_enu: np.ndarray
+    designated_by: str
+    t_designated: float
+    track_ids: tuple[int, ...] = ()
+    apart_ids: frozenset[int] = frozenset()
+    refused_ids: frozenset[int] = frozenset()
+    misses: int = 0
+    lost: bool = False
+    near_ids: frozenset[int] = field(default=frozenset(), repr=False)  # within swap_m of it at the last report
+
+    def since_confirmed(self, t: float) -> float:
+        return max(0.0, t - self.t_confirmed)
+
+    def confidence(self, t: float, tau_s: float = CustodyParams.confidence_tau_s) -> float:
+        """1 at a confirmation, falling while the radar does not confirm it; 0 once lost."""
+        return 0.0 if self.lost else math.exp(-self.since_confirmed(t) / tau_s)
+
+    def predicted(self, t: float) -> np.ndarray:
+        """Where the target should be at ``t``, on its last velocity."""
+        return self.position_enu + self.velocity_enu * self.since_confirmed(t)
+
+    def cue(self) -> TargetCue:
+        """The last confirmation as a radar cue."""
+        return TargetCue(self.t_confirmed, self.position_enu, self.covariance_enu, self.velocity_enu, "radar",
+                         self.target_id)
+
+
+def designate(track: RadarTrack, t: float, by: str, previous: Custody | None = None) -> tuple[Custody, CustodyEvent | None]:
+    """Custody of the object ``track`` reports, chosen ``by`` someone; the event is None when ``track``
+    already carries the designated target (a re-validation changes nothing)."""
+    if previous is not None and not previous.lost and previous.track_id == track.track_id:
+        return previous, None
+    vel = track.velocity_enu if track.velocity_enu is not None else np.zeros(3)
+    custody = Custody(track.track_id, track.track_id, track.t, track.position_enu, np.asarray(vel, float),
+                      track.covariance_enu, by, t, (track.track_id,))
+    kind = "designated" if previous is None else "switched"
+    reason = by if previous is None else f"{by}, was target {previous.target_id}"
+    return custody, CustodyEvent(t, kind, custody.target_id, track.track_id, reason)
+
+
+def _position_gate(c: Custody, report: RadarTrack, p: CustodyParams) -> float:
+    """The radius around the prediction a report of the target may fall in."""
+    dt = max(0.0, report.t - c.t_confirmed)
+    sigma = math.sqrt(float(np.trace(report.covariance_enu)) + float(np.trace(c.covariance_enu)) / 3.0
+                      + (0.5 * p.accel_mps2 * dt * dt) ** 2)
+    return min(p.max_gate_m, max(p.floor_m, p.gate_sigma * sigma))
+
+
+def _fit(c: Custody, report: RadarTrack, p: CustodyParams, carrier: bool = False) -> float | None:
+    """The report's normalised distance from the target's prediction, or None outside the gate
+    (``carrier``: the next report of the track that carries the target)."""
+    dt = max(0.0, report.t - c.t_confirmed)
+    miss = float(np.linalg.norm(report.position_enu - c.predicted(report.t)))
+    gate = _position_gate(c, report, p)
+    if miss > gate:
+        return None
+    if report.velocity_enu is not None:
+        dv = float(np.linalg.norm(report.velocity_enu - c.velocity_enu))
+        vgate = (p.carrier_vel_gate_mps + p.accel_mps2 * dt if carrier
+                 else p.vel_gate_mps + p.accel_mps2 * (dt + p.vel_lag_s))
+        if dv > vgate:
+            return None
+        return miss / gate + dv / vgate
+    return miss / gate
+
+
+def _confirm(c: Custody, report: RadarTrack) -> Custody:
+    vel = c.velocity_enu if report.velocity_enu is None else report.velocity_enu  # the radar's tracker filters it
+    ids = c.track_ids if report.track_id in c.track_ids[-1:] else c.track_ids + (report.track_id,)
+    return replace(c, track_id=report.track_id, t_confirmed=report.t, position_enu=report.position_enu,
+                   velocity_enu=np.asarray(vel, float), covariance_enu=report.covariance_enu, track_ids=ids, misses=0,
+                   lost=False)
+
+
+def track_custody(c: Custody, picture: RadarPicture, params: CustodyParams | None = None) -> tuple[Custody, list[CustodyEvent]]:
+    """Carry custody over one radar picture; the new custody and what changed."""
+    p = params or CustodyParams()
+    t = picture.t
+    events: list[CustodyEvent] = []
+    candidates = {tr.track_id: tr for tr in picture.intruders}
+    if c.lost:
+        return _reacquire(c, candidates, p, events), events
+    carrier = candidates.get(c.track_id) if c.track_id is not None else None
+    if carrier is not None and carrier.t > c.t_confirmed:
+        if _fit(c, carrier, p, carrier=True) is not None:
+            c = _confirm(c, carrier)
+        elif c.misses + 1 >= p.misses_to_release:
+            events.append(CustodyEvent(t, "released", c.target_id, c.track_id,
+                                       f"{c.misses + 1} reports outside the target's gate (id swap or wrong track)"))
+            c = replace(c, track_id=None, misses=0, apart_ids=c.apart_ids | {carrier.track_id})
+            carrier = None
+        else:
+            c = replace(c, misses=c.misses + 1)
+    elif c.track_id is not None and carrier is None:
+        why = "track ended" if c.track_id not in picture.tracks else "track taken for the ownship"
+        events.append(CustodyEvent(t, "released", c.target_id, c.track_id, f"{why}; coasting"))
+        c = replace(c, track_id=None, misses=0)
+    if c.track_id is None:
+        c = _hand_over(c, candidates, p, events)
+    c = _note_others(c, candidates, p)
+    if c.track_id is None and c.since_confirmed(t) > p.max_coast_s:
+        c = replace(c, lost=True)
+        events.append(CustodyEvent(t, "lost", c.target_id, None, f"unconfirmed for {c.since_confirmed(t):.1f} s"))
+    return c, events
+
+
+def _hand_over(c: Custody, candidates: dict[int, RadarTrack], p: CustodyParams,
+               events: list[CustodyEvent]) -> Custody:
+    """The track that takes over a coasting target: the best fit in the gate that can be the target."""
+    best: tuple[float, RadarTrack, str] | None = None
+    refused = set(c.refused_ids)
+    swap_window = c.since_confirmed(max((tr.t for tr in candidates.values()), default=c.t_confirmed)) <= 1.0
+    for tr in candidates.values():
+        if tr.t <= c.t_confirmed:
+            continue
+        if tr.track_id in refused or (tr.track_id in c.apart_ids and not (swap_window and tr.track_id in c.near_ids)):
+            continue  # another object seen beside the target, or one that appeared away from it
+        fit = _fit(c, tr, p)
+        if fit is None:
+            refused.add(tr.track_id)
+            continue
+        why = "id swap" if tr.track_id in c.apart_ids else "new id in the target's gate"
+        if best is None or fit < best[0]:
+            best = (fit, tr, why)
+    if best is None:
+        return replace(c, refused_ids=frozenset(refused))
+    fit, tr, why = best
+    miss = float(np.linalg.norm(tr.position_enu - c.predicted(tr.t)))
+    events.append(CustodyEvent(tr.t, "handover", c.target_id, tr.track_id,
+                               f"{why}, {miss:.0f} m from the prediction after {tr.t - c.t_confirmed:.1f} s"))
+    return _confirm(replace(c, apart_ids=c.apart_ids - {tr.track_id}, refused_ids=frozenset()), tr)
+
+
+def _reacquire(c: Custody, candidates: dict[int, RadarTrack], p: CustodyParams,
+               events: list[CustodyEvent]) -> Custody:
+    """A lost target back: the nearest confident track first seen after the loss, near where it was last."""
+    fresh = [tr for tr in candidates.values() if tr.first_seen_t > c.t_confirmed and tr.track_id not in c.apart_ids
+             and tr.confidence >= p.reacquire_confidence
+             and float(np.linalg.norm(tr.position_enu - c.position_enu)) <= p.max_gate_m]
+    if not fresh:
+        return c
+    tr = min(fresh, key=lambda tr: float(np.linalg.norm(tr.position_enu - c.position_enu)))
+    d = float(np.linalg.norm(tr.position_enu - c.position_enu))
+    events.append(CustodyEvent(tr.t, "reacquired", c.target_id, tr.track_id,
+                               f"new track {d:.0f} m from where the target was lost, confidence {tr.confidence:.2f}"))
+    return _confirm(replace(c, velocity_enu=np.zeros(3), refused_ids=frozenset()), tr)
+
+
+def _note_others(c: Custody, candidates: dict[int, RadarTrack], p: CustodyParams) -> Custody:
+    """Remember the tracks seen apart from the carrying one (other objects) and those close to it."""
+    carrier = candidates.get(c.track_id) if c.track_id is not None else None
+    if carrier is None:
+        return c
+    apart, near = set(c.apart_ids), set()
+    for tr in candidates.values():
+        if tr.track_id == carrier.track_id or abs(tr.t - carrier.t) > 0.5:
+            continue
+        d = float(np.linalg.norm(tr.position_enu - carrier.position_enu))
+        if d >= p.apart_m:
+            apart.add(tr.track_id)
+        if d <= p.swap_m:
+            near.add(tr.track_id)
+    return replace(c, apart_ids=frozenset(apart), near_ids=frozenset(near))

@@ -1,0 +1,103 @@
+"""The uplink: signed designate commands from the ground, everything else dropped and counted."""
+
+from __future__ import annotations
+
+import json
+import socket
+import time
+
+import py_trees
+import pytest
+
+from chaser_bt.ground.auth import StreamSigner
+from chaser_bt.ground.protocol import json_datagram
+from chaser_bt.ground.uplink import GroundCommand, UplinkReceiver, designate_datagram, parse_command
+
+KEY = bytes(range(32))
+OTHER_KEY = bytes(range(1, 33))
+
+
+def _send(port: int, *datagrams: bytes) -> None:
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    for d in datagrams:
+        s.sendto(d, ("127.0.0.1", port))
+    s.close()
+
+
+def _poll(rx: UplinkReceiver, want: int, timeout_s: float = 2.0) -> list[GroundCommand]:
+    """Poll until ``want`` datagrams were handled (accepted or dropped), as a tick loop would."""
+    out: list[GroundCommand] = []
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        out += rx.poll()
+        c = rx.counters
+        if c.accepted + c.not_allowed + c.malformed + sum(c.auth.values()) >= want:
+            break
+        time.sleep(0.01)
+    return out
+
+
+def test_a_signed_designation_is_believed_and_the_rest_is_dropped_by_kind():
+    rx = UplinkReceiver("127.0.0.1", 0, KEY)
+    port = rx.address[1]
+    signer = StreamSigner(KEY, link_id=3)
+    good = designate_datagram(signer, 4117, seq=1)
+    unknown = signer.sign(json_datagram("command", 2, 0.0, {"command": "land"}))
+    negative = signer.sign(json_datagram("command", 3, 0.0, {"command": "designate", "track_id": -1}))
+    boolean = signer.sign(json_datagram("command", 4, 0.0, {"command": "designate", "track_id": True}))
+    garbage = signer.sign(b"\xff\x00 not json")
+    plain = json_datagram("command", 5, 0.0, {"command": "designate", "track_id": 9})
+    forged = designate_datagram(StreamSigner(OTHER_KEY), 9)
+    assert rx.poll() == []  # nothing yet: returns at once
+    _send(port, good, unknown, negative, boolean, garbage, plain, forged, good)  # the last: a replay
+    cmds = _poll(rx, 8)
+    assert cmds == [GroundCommand("designate", 4117, 1)]
+    c = rx.counters
+    assert (c.accepted, c.malformed) == (1, 4)
+    assert c.auth == {"unsigned": 1, "forged": 1, "replayed": 1}
+    rx.close()
+
+
+def test_commands_from_a_host_not_allowed_are_dropped_even_when_signed():
+    rx = UplinkReceiver("127.0.0.1", 0, KEY, allowed_hosts=["10.9.9.9"])
+    _send(rx.address[1], designate_datagram(StreamSigner(KEY), 5))
+    assert _poll(rx, 1) == [] and rx.counters.not_allowed == 1
+    rx.close()
+
+
+def test_parse_command_names_the_bad_field():
+    with pytest.raises(ValueError, match="track_id 'x'"):
+        parse_command(json.dumps({"v": 1, "type": "command", "seq": 1, "command": "designate", "track_id": "x"}).encode())
+    with pytest.raises(ValueError, match="not a command"):
+        parse_command(json_datagram("status", 1, 0.0, {}))
+    with pytest.raises(ValueError, match="track id"):
+        designate_datagram(StreamSigner(KEY), 2**31)
+
+
+def test_ground_designation_writes_the_operators_track_and_is_off_without_an_uplink():
+    from chaser_bt.clock import ManualClock
+    from chaser_bt.tree import load_tree_text
+    from chaser_bt.vehicle import VehicleLink, byte_pipe
+
+    clock = ManualClock(0.0)
+    link = VehicleLink.over_pipe(byte_pipe()[0], monotonic=clock.now)
+    py_trees.blackboard.Blackboard.set("/vehicle/state", link.state)
+    rx = UplinkReceiver("127.0.0.1", 0, KEY)
+    for uplink, expect in ((rx, 77), (None, None)):
+        py_trees.blackboard.Blackboard.unset("/radar/operator_confirmed_track")
+        tree = load_tree_text("version: 1\ntrees:\n  Main:\n    GroundDesignation: {}\n", source="<test>")
+        bt = py_trees.trees.BehaviourTree(tree.root)
+        bt.setup(link=link, clock=clock, uplink=uplink)
+        if uplink is not None:
+            _send(rx.address[1], designate_datagram(StreamSigner(KEY), expect))
+            end = time.monotonic() + 2.0
+            while py_trees.blackboard.Blackboard.storage.get("/radar/operator_confirmed_track") is None and time.monotonic() < end:
+                bt.tick()
+                time.sleep(0.01)
+            assert "1 command(s), 0 dropped" in bt.root.feedback_message
+        else:
+            bt.tick()
+            assert "uplink off" in bt.root.feedback_message
+        assert bt.root.status == py_trees.common.Status.SUCCESS
+        assert py_trees.blackboard.Blackboard.storage.get("/radar/operator_confirmed_track") == expect
+    rx.close()

@@ -1,0 +1,150 @@
+"""Target custody against hand-worked radar pictures: drop-outs, new ids, id swaps, other objects."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from chaser_bt.radar.custody import Custody, CustodyParams, designate, track_custody
+from chaser_bt.radar.feed import RadarPicture, RadarTrack
+
+COV = np.eye(3) * 4.0  # 2 m per axis: trace 12, the report's share of the gate's sigma
+
+
+def track(tid: int, t: float, pos, vel=(0.0, 0.0, 0.0), conf: float = 0.95, first: float = 0.0) -> RadarTrack:
+    return RadarTrack(tid, t, np.array(pos, float), None if vel is None else np.array(vel, float), COV, conf, first)
+
+
+def picture(t: float, *tracks: RadarTrack) -> RadarPicture:
+    return RadarPicture(t, {tr.track_id: tr for tr in tracks}, None, t)
+
+
+def fly(c: Custody, pictures, params: CustodyParams | None = None):
+    events = []
+    for pic in pictures:
+        c, ev = track_custody(c, pic, params)
+        events += ev
+    return c, events
+
+
+def start(t: float = 0.0, pos=(0.0, 100.0, 30.0), vel=(5.0, 0.0, 0.0)) -> Custody:
+    c, ev = designate(track(1, t, pos, vel), t, "test")
+    assert ev is not None and ev.kind == "designated"
+    return c
+
+
+def test_the_carrying_track_confirms_the_target():
+    c = start()
+    c, ev = fly(c, [picture(0.2 * k, track(1, 0.2 * k, (k * 1.0, 100, 30), (5, 0, 0))) for k in range(1, 6)])
+    assert ev == [] and c.track_id == 1 and c.t_confirmed == pytest.approx(1.0)
+    np.testing.assert_allclose(c.position_enu, (5, 100, 30))
+    assert c.confidence(1.0) == 1.0
+
+
+def test_a_new_id_at_the_predicted_place_takes_over_but_a_bird_seen_beside_the_target_does_not():
+    c = start()
+    bird = lambda t, x: track(7, t, (x, 100, 30), (5, 0, 0), conf=0.6)
+    # The bird flies 30 m behind the target while both are tracked: another object.
+    c, _ = fly(c, [picture(0.2, track(1, 0.2, (1, 100, 30), (5, 0, 0)), bird(0.2, -29))])
+    assert 7 in c.apart_ids
+    # The target's track drops; 1 s later the bird sits on the prediction (x = 6) and a new id is 3 m off it.
+    c, ev = fly(c, [picture(0.4, bird(0.4, -28)),
+                    picture(1.2, bird(1.2, 6.0), track(9, 1.2, (6, 103, 30), (5, 0, 0), first=1.2))])
+    assert [e.kind for e in ev] == ["released", "handover"]
+    assert c.track_id == 9 and c.target_id == 1 and c.track_ids == (1, 9)
+
+
+def test_a_track_outside_the_gate_is_not_the_target_and_a_long_silence_loses_it():
+    p = CustodyParams(max_coast_s=3.0)
+    c = start()
+    # Dropped at t = 0; 2 s later the prediction is x = 10; the gate there is
+    # 3.5 * sqrt(12 + 4 + (0.5 * 8 * 4)^2) = 57.0 m: a new track 60 m off is something else.
+    far = track(5, 2.0, (10, 160, 30), (5, 0, 0), first=2.0)
+    c, ev = fly(c, [picture(2.0, far)], p)
+    assert c.track_id is None and [e.kind for e in ev] == ["released"]
+    c, ev = fly(c, [picture(3.5, track(5, 3.5, (17, 160, 30), (5, 0, 0), first=2.0))], p)
+    assert c.lost and [e.kind for e in ev] == ["lost"] and c.confidence(3.5) == 0.0
+    # Lost: a doubtful new track near it (a bird's 0.6) is not taken; a confident one is.
+    c, ev = fly(c, [picture(4.0, track(6, 4.0, (20, 110, 30), (5, 0, 0), conf=0.6, first=4.0))], p)
+    assert c.lost and ev == []
+    c, ev = fly(c, [picture(4.2, track(8, 4.2, (20, 110, 30), (5, 0, 0), conf=0.9, first=4.2))], p)
+    assert not c.lost and c.track_id == 8 and [e.kind for e in ev] == ["reacquired"]
+
+
+def test_the_velocity_gate_refuses_a_track_flying_the_other_way():
+    c = start()
+    # On the prediction but 20 m/s off: the gate is 6 + 8 * (0.6 + 1) = 18.8 m/s.
+    opposite = track(4, 0.6, (3, 100, 30), (-15, 0, 0), first=0.6)
+    c, ev = fly(c, [picture(0.6, opposite)])
+    assert c.track_id is None and [e.kind for e in ev] == ["released"]
+    same = track(6, 0.8, (4, 100, 30), (5, 0, 0), first=0.8)
+    c, ev = fly(c, [picture(0.8, same)])
+    assert c.track_id == 6
+
+
+def test_an_id_swap_is_followed_to_the_object():
+    """Two drones pass 4 m apart; the radar exchanges their ids; custody stays with the object."""
+    c = start(vel=(5, 0, 0))
+    pics = []
+    for k in range(1, 11):  # target east at 5 m/s along y = 100; the other comes west along y = 104
+        t = 0.2 * k
+        target, other = (5 * t, 100, 30), (10 - 5 * t, 104 - 0.0, 30)
+        if k < 6:
+            pics.append(picture(t, track(1, t, target, (5, 0, 0)), track(2, t, other, (-5, 0, 0), first=0.0)))
+        else:  # swapped: id 1 now reports the other drone, id 2 the target
+            pics.append(picture(t, track(2, t, target, (5, 0, 0), first=0.0), track(1, t, other, (-5, 0, 0))))
+    c, ev = fly(c, [picture(0.0, track(1, 0.0, (0, 100, 30), (5, 0, 0)), track(2, 0.0, (40, 104, 30), (-5, 0, 0)))] + pics)
+    assert c.track_id == 2 and c.target_id == 1
+    assert [e.kind for e in ev] == ["released", "handover"] and "id swap" in ev[-1].reason
+    np.testing.assert_allclose(c.position_enu, (10, 100, 30))
+
+
+def test_designating_again_changes_nothing_and_another_track_is_a_switch():
+    c = start()
+    same, ev = designate(track(1, 0.2, (1, 100, 30)), 0.2, "again", c)
+    assert same is c and ev is None
+    other, ev = designate(track(3, 0.2, (50, 100, 30)), 0.2, "operator", c)
+    assert other.target_id == 3 and ev.kind == "switched" and "was target 1" in ev.reason
+
+
+def test_bad_params_are_refused():
+    with pytest.raises(ValueError):
+        CustodyParams(gate_sigma=0)
+    with pytest.raises(ValueError):
+        CustodyParams(vel_lag_s=-1)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.integers(2, 6), st.floats(-300, 300), st.floats(-300, 300), st.floats(-10, 10)),
+                min_size=1, max_size=40))
+def test_custody_never_names_another_target_and_never_takes_an_object_seen_apart(reports):
+    """Whatever the radar reports, the target id stays the designated one, and no track seen 20 m or
+    more from the carrying track (and never within 15 m of it) ever carries the target."""
+    c = start(pos=(0, 0, 30), vel=(0, 0, 0))
+    seen_apart_only: set[int] = set()
+    for k, (tid, x, y, v) in enumerate(reports, start=1):
+        t = 0.2 * k
+        pic = picture(t, track(tid, t, (x, y, 30), (v, 0, 0), first=0.0))
+        before = c
+        c, _ = track_custody(c, pic)
+        assert c.target_id == 1
+        if c.track_id is not None and c.track_id != before.track_id:
+            assert c.track_id not in seen_apart_only
+        seen_apart_only |= set(c.apart_ids) - set(c.near_ids)
+
+
+def test_a_dash_at_the_phantoms_acceleration_keeps_the_carrying_track():
+    """The target turns about and dashes at 8 m/s^2 from 5 m/s east to 20 m/s west; the radar's
+    velocity follows it with a 0.4 s lag (as its tracker does). Custody never lets the track go."""
+    c = start(pos=(0, 100, 30), vel=(5, 0, 0))
+    x, v, v_radar, dt = 0.0, 5.0, 5.0, 0.2
+    pics = []
+    for k in range(1, 30):
+        v = max(-20.0, v - 8.0 * dt)
+        x += v * dt
+        v_radar += min(1.0, dt / 0.4) * (v - v_radar)
+        pics.append(picture(k * dt, track(1, k * dt, (x, 100, 30), (v_radar, 0, 0))))
+    c, ev = fly(c, pics)
+    assert ev == [] and c.track_id == 1 and c.velocity_enu[0] < -15.0
