@@ -36,6 +36,8 @@ from chaser_bt.vision.pipeline import CameraSensor, OwnshipPose
 
 Status = py_trees.common.Status
 
+FRAMES_DROPPED_KEY = "/camera/frames_dropped"
+
 ESTIMATE_KEY = "/target/estimate"
 
 
@@ -89,10 +91,15 @@ class VisionPipeline(VehicleBehaviour):
                                    default=0, minimum=0),
         "state": state_port(),
     }
-    OUTPUT_PORTS = {"estimate": output_port(TargetEstimate, "Where the camera sees the target", default_key=ESTIMATE_KEY)}
+    OUTPUT_PORTS = {
+        "estimate": output_port(TargetEstimate, "Where the camera sees the target", default_key=ESTIMATE_KEY),
+        "frames_dropped": output_port(dict, "Camera frames the source dropped, per reason (not 8-bit BGR, empty, "
+                                            "resized); written when it changes", default_key=FRAMES_DROPPED_KEY),
+    }
 
     def setup(self, **kwargs: Any) -> None:
         super().setup(**kwargs)
+        self._dropped_seen: dict[str, int] = {}
         if not isinstance(kwargs.get("camera"), (CameraSensor, PerceptionWorker)):
             raise KeyError(f"{self.name}: setup() needs camera=CameraSensor(...) or PerceptionWorker(...) "
                            f"(the mission runner passes it)")
@@ -158,12 +165,22 @@ class VisionPipeline(VehicleBehaviour):
             est = self.camera.latest().estimate
         else:
             est = self.camera.step(now, pose, known_range, cue)
+        self._report_drops()
         if est is None:
             self.feedback_message = "no target in view"
             return Status.FAILURE
         self._set_output("estimate", est)
         self.feedback_message = f"target at {est.range_m:.1f} m, confidence {est.confidence:.2f}"
         return Status.SUCCESS
+
+
+    def _report_drops(self) -> None:
+        """Put the source's dropped-frame counts on the blackboard when they change."""
+        sensor = self.camera.sensor if isinstance(self.camera, PerceptionWorker) else self.camera
+        dropped = getattr(sensor.source, "dropped", None)
+        if dropped and dict(dropped) != self._dropped_seen:
+            self._dropped_seen = dict(dropped)
+            self._set_output("frames_dropped", dict(dropped))
 
 
 @register_behaviour

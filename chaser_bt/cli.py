@@ -214,6 +214,9 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                    help="TCP port to listen on, as ArduPilot SITL (default 5760; 0: any free one, printed)")
     p.add_argument("--udp-port", type=arg.listen_port, default=14550, metavar="PORT",
                    help="UDP port to listen on, reached with udpout: (default 14550; 0: any free one, printed)")
+    p.add_argument("--radar-key", type=arg.input_file, metavar="FILE",
+                   help="sign the scenario's radar datagrams (its radar.udp_port) with this key, as `run --radar-key` "
+                        "verifies them (default: plain)")
     _signing_arguments(p)
     arg.add_verbose_everywhere(sub)
     return parser
@@ -340,9 +343,12 @@ def _fly(args: argparse.Namespace, tree, monitor) -> int:
     except VehicleError as exc:
         print(f"chaser-bt: {exc}", file=sys.stderr)
         return EXIT_FAILED
-    from chaser_bt.mission.preflight import read_safety_settings, safety_warnings
+    from chaser_bt.mission.preflight import read_fence, read_safety_settings, safety_warnings
 
     unsafe = safety_warnings(read_safety_settings(link))
+    env = read_fence(link)
+    print(f"chaser-bt: run: set-points kept within {env.max_distance_m:g} m of home, {env.min_alt_m:g} to "
+          f"{env.max_alt_m:g} m above it (the vehicle's fence, where enabled, less its margin)", file=sys.stderr)
     for line in unsafe:
         print(f"chaser-bt: run: warning: {line}", file=sys.stderr)
     if unsafe and args.require_failsafes:
@@ -550,6 +556,17 @@ def _load_scenario(path: Path):
 def _sitl(args: argparse.Namespace) -> int:
     scenario = _load_scenario(args.scenario)
     signing = _signing(args)
+    radar_sign = None
+    if args.radar_key is not None:
+        from chaser_bt.ground.auth import StreamSigner
+        from chaser_bt.vehicle.signing import SigningKeyError, load_key
+
+        if scenario.radar is None or scenario.radar.udp_port is None:
+            raise _BadInput(f"--radar-key: scenario {scenario.name} sends no radar datagrams (no radar.udp_port)")
+        try:
+            radar_sign = StreamSigner(load_key(args.radar_key)).sign
+        except SigningKeyError as exc:
+            raise _BadInput(f"--radar-key: {exc}") from None
     from sitl.server import serve
 
     def ready(connection_strings: list[str]) -> None:
@@ -563,7 +580,7 @@ def _sitl(args: argparse.Namespace) -> int:
 
     try:
         interrupted = serve(scenario, seed=args.seed, speedup=args.speedup, udp_port=args.udp_port,
-                            tcp_port=args.tcp_port, ready=ready, signing=signing)
+                            tcp_port=args.tcp_port, ready=ready, signing=signing, radar_sign=radar_sign)
     except OSError as exc:
         if exc.errno not in (errno.EADDRINUSE, errno.EACCES, errno.EADDRNOTAVAIL):
             raise

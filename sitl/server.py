@@ -50,6 +50,7 @@ def serve(
     physics_hz: float | None = None,
     signing: SigningConfig | None = None,
     max_clients: int = 32,
+    radar_sign: Callable[[bytes], bytes] | None = None,
 ) -> bool:
     """Run the simulator in real time (times ``speedup``) until ``stop`` is set, Ctrl-C or SIGTERM.
 
@@ -66,11 +67,15 @@ def serve(
         physics_hz: physics rate (default: the simulator's).
         signing: MAVLink 2 signing key and link id (``SigningConfig.from_file(path)``); None: off.
         max_clients: TCP clients, and UDP peers, served at once; more are refused.
+        radar_sign: signs each radar datagram sent over UDP (the ground stream's HMAC, a
+            ``StreamSigner.sign``); None: plain.
     """
     if not speedup > 0.0:
         raise ValueError(f"speedup must be > 0, got {speedup}")
     stop = stop if stop is not None else threading.Event()
     sim = Simulator(scenario, seed, physics_hz=physics_hz)
+    if radar_sign is not None:
+        sim.surroundings.sign_radar_datagrams(radar_sign)
     if signing is not None:
         # Clients stamp with the wall clock: so does the vehicle (ArduPilot: GPS time).
         sim.endpoint.enable_signing(signing, epoch_unix_s=time.time() - sim.time_s)

@@ -126,6 +126,7 @@ BAD_INPUTS = [
     ([*RADAR, "--radar-pose", "{tmp}"], "--radar-pose"),
     ([*RADAR, "--radar-pose", "{tmp}/good_pose.json", "--radar-key", "{tmp}/binary.bin"], "--radar-key"),
     ([*RUN, "--uplink", "127.0.0.1:14650"], "--uplink needs --uplink-key FILE"),
+    (["sitl", "--scenario", SCENARIO, "--radar-key", "{tmp}/good_pose.json"], "sends no radar datagrams"),
     ([*RUN, "--uplink", "127.0.0.1:14650", "--uplink-key", "{tmp}/binary.bin"], "--uplink-key"),
     ([*RUN, "--uplink", "127.0.0.1:99999", "--uplink-key", "{tmp}/good_pose.json"], "port 99999 out of range"),
     (["designate", "5", "--to", "127.0.0.1:14650", "--key", "{tmp}/binary.bin"], "designate"),

@@ -14,7 +14,7 @@ from typing import Any, Callable
 
 from chaser_bt.vehicle import VehicleError
 
-__all__ = ["SAFETY_SETTINGS", "SafetySetting", "read_safety_settings", "safety_warnings"]
+__all__ = ["SAFETY_SETTINGS", "SafetySetting", "read_fence", "read_safety_settings", "safety_warnings"]
 
 
 @dataclass(frozen=True)
@@ -75,3 +75,16 @@ def read_safety_settings(link: Any, timeout_s: float = 5.0, settings: tuple[Safe
                 found[s.name] = link.params[name] * factor
                 break
     return found
+
+
+def read_fence(link: Any, timeout_s: float = 5.0) -> Any:
+    """Read the vehicle's FENCE_* parameters (bounded wait) so the link's command envelope stays inside
+    its fence; the envelope now in force (:attr:`chaser_bt.vehicle.VehicleLink.envelope`)."""
+    from chaser_bt.vehicle.envelope import FENCE_PARAMS
+
+    commands = [link.request_param(name) for name in FENCE_PARAMS]
+    try:
+        link.wait(lambda: all(c.done for c in commands), timeout_s)
+    except VehicleError:  # a vehicle without a fence, or a lost answer: the configured envelope stays
+        pass
+    return link.envelope

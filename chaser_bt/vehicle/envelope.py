@@ -6,18 +6,25 @@ Every GUIDED target the link sends passes through here first: it must be finite,
 from a filter: each would otherwise become a target the autopilot flies until its own fence (if
 any) stops it. A set-point outside is not sent; the link raises :class:`UnsafeCommand`, the leaf
 fails with the reason and the hold of its exit takes over. The autopilot's own fence stays the
-last line; this is the one before it, on the ground station's side.
+last line; this is the one before it, on the ground station's side, and once the vehicle's FENCE_*
+parameters are read it never reaches past that fence (:meth:`CommandEnvelope.within_fence`): a
+set-point the autopilot would answer with a fence breach (RTL) is refused before it is sent.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Sequence
+from dataclasses import dataclass, replace
+from typing import Mapping, Sequence
 
 from chaser_bt.vehicle.errors import VehicleError
 
-__all__ = ["CommandEnvelope", "UnsafeCommand"]
+__all__ = ["CommandEnvelope", "FENCE_PARAMS", "UnsafeCommand"]
+
+#: The ArduCopter parameters that say where its fence is (AC_Fence; FENCE_TYPE bits: 1 maximum
+#: altitude, 2 circle around home, 4 polygon, 8 minimum altitude).
+FENCE_PARAMS = ("FENCE_ENABLE", "FENCE_TYPE", "FENCE_RADIUS", "FENCE_ALT_MAX", "FENCE_ALT_MIN", "FENCE_MARGIN")
+_ALT_MAX, _CIRCLE, _ALT_MIN = 1, 2, 8
 
 
 class UnsafeCommand(VehicleError):
@@ -40,6 +47,22 @@ class CommandEnvelope:
                 raise ValueError(f"CommandEnvelope.{name} = {value}: expected a finite number > 0")
         if not (math.isfinite(self.min_alt_m) and self.min_alt_m < self.max_alt_m):
             raise ValueError(f"CommandEnvelope.min_alt_m = {self.min_alt_m}: expected finite and below max_alt_m")
+
+    def within_fence(self, params: Mapping[str, float]) -> CommandEnvelope:
+        """This envelope cut down to the vehicle's enabled fence, ``FENCE_MARGIN`` inside it (the circle
+        and the altitudes; a polygon is not read). Unchanged while the fence is off, its parameters
+        are not all known, or they describe no usable space (the pre-flight check reports that)."""
+        if any(name not in params for name in FENCE_PARAMS) or not params["FENCE_ENABLE"]:
+            return self
+        kind, margin = int(params["FENCE_TYPE"]), max(0.0, float(params["FENCE_MARGIN"]))
+        out = self
+        if kind & _CIRCLE and params["FENCE_RADIUS"] - margin > 0:
+            out = replace(out, max_distance_m=min(out.max_distance_m, params["FENCE_RADIUS"] - margin))
+        top = min(out.max_alt_m, params["FENCE_ALT_MAX"] - margin) if kind & _ALT_MAX else out.max_alt_m
+        bottom = max(out.min_alt_m, params["FENCE_ALT_MIN"] + margin) if kind & _ALT_MIN else out.min_alt_m
+        if top > 0 and bottom < top:
+            out = replace(out, max_alt_m=top, min_alt_m=bottom)
+        return out
 
     def check_position(self, east_m: float, north_m: float, alt_above_home_m: float) -> None:
         """Raise :class:`UnsafeCommand` unless a target ``east_m``/``north_m`` from home at

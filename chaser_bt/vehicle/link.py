@@ -406,7 +406,7 @@ class VehicleLink:
         """GUIDED take-off to ``alt_rel_m`` above home (ArduCopter: armed, GUIDED, landed)."""
         if not alt_rel_m > 0:
             raise ValueError(f"takeoff altitude {alt_rel_m} m: expected > 0 (above home)")
-        self.config.envelope.check_altitude(alt_rel_m)
+        self.envelope.check_altitude(alt_rel_m)
         return self._submit(f"takeoff({alt_rel_m:g} m)", mavlink.MAV_CMD_NAV_TAKEOFF, (0, 0, 0, 0, 0, 0, alt_rel_m))
 
     def rtl(self) -> Command:
@@ -421,7 +421,7 @@ class VehicleLink:
         """Horizontal speed for GUIDED legs (MAV_CMD_DO_CHANGE_SPEED, ground speed; throttle unchanged)."""
         if not speed_mps > 0:
             raise ValueError(f"speed {speed_mps} m/s: expected > 0")
-        self.config.envelope.check_speed(speed_mps)
+        self.envelope.check_speed(speed_mps)
         return self._submit(f"set_speed({speed_mps:g} m/s)", mavlink.MAV_CMD_DO_CHANGE_SPEED, (1, speed_mps, -1))
 
     def set_param(self, name: str, value: float) -> Command:
@@ -437,6 +437,12 @@ class VehicleLink:
             Command(f"set_param({name})"), ("param_set", name), send, self._now(),
             blocker=self._vehicle_unknown, wait_s=self._answer_budget_s(), matches=lambda v: np.float32(v) == want,
         )
+
+    @property
+    def envelope(self) -> CommandEnvelope:
+        """The command envelope in force: the configured one, cut down to the vehicle's fence once its
+        FENCE_* parameters have been read (:func:`chaser_bt.mission.preflight.read_fence`)."""
+        return self.config.envelope.within_fence(self.params)
 
     def request_param(self, name: str) -> Command:
         """Read a parameter into :attr:`params`; accepted when its PARAM_VALUE arrives."""
@@ -475,10 +481,10 @@ class VehicleLink:
         """GUIDED: fly to ``point``'s latitude/longitude at ``alt_rel_m`` above home, and hold (checked
         against the command envelope like :meth:`goto_enu`)."""
         if self.frame is None:
-            self.config.envelope.check_altitude(alt_rel_m)
+            self.envelope.check_altitude(alt_rel_m)
         else:
             east, north, _ = self.frame.point_to_enu(point) - self._home_enu()
-            self.config.envelope.check_position(float(east), float(north), alt_rel_m)
+            self.envelope.check_position(float(east), float(north), alt_rel_m)
         self._send_position(point.lat_deg, point.lon_deg, alt_rel_m, yaw_enu_rad, relative=True)
 
     def velocity_enu(self, vel_enu: Sequence[float] | np.ndarray, yaw_rate: float | None = None,
@@ -488,7 +494,7 @@ class VehicleLink:
         or it stops."""
         if yaw_rate is not None and yaw_enu_rad is not None:
             raise ValueError("velocity_enu: give a yaw rate or a heading, not both")
-        self.config.envelope.check_velocity(vel_enu, yaw_rate)
+        self.envelope.check_velocity(vel_enu, yaw_rate)
         self._require_vehicle()
         vn, ve, vd = enu_to_ned(vel_enu)
         mask = _VELOCITY_ONLY | (mavlink.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE if yaw_rate is None else 0)
@@ -773,7 +779,7 @@ class VehicleLink:
         if target.shape != (3,) or not np.all(np.isfinite(target)):
             raise UnsafeCommand(f"position target not finite: {list(np.ravel(target))}")
         east, north, up = target - self._home_enu()
-        self.config.envelope.check_position(float(east), float(north), float(up))
+        self.envelope.check_position(float(east), float(north), float(up))
 
     def _send_position(self, lat_deg: float, lon_deg: float, alt_m: float, yaw_enu_rad: float | None, *,
                        relative: bool) -> None:

@@ -9,7 +9,9 @@ watches a :class:`~chaser_bt.vehicle.VehicleLink` from both sides:
   NAV_LAND, or a SET_MODE message) is remembered as *pending*;
 - every change of HEARTBEAT.custom_mode from the vehicle is matched against the pending requests:
   a requested mode is the mission's own, anything else is *foreign* and is logged with the time
-  and the STATUSTEXT that came with it (ArduCopter names its failsafes: "GCS Failsafe", ...).
+  and the STATUSTEXT that came with it (ArduCopter names its failsafes: "GCS Failsafe", ...): of
+  what the vehicle said since the last mode change, the most severe (a failsafe is CRITICAL or a
+  WARNING; "EKF3 IMU0 is using GPS" is INFO), the latest of those.
 
 A request that the vehicle has not honoured within :data:`PENDING_HEARTBEATS` heartbeats is
 forgotten (a refused request must not excuse a later operator's switch to the same mode); the
@@ -40,7 +42,8 @@ _MODE_OF_COMMAND = {mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH: "RTL", mavlink.MAV_CMD
 @dataclass(frozen=True)
 class ForeignModeChange:
     """A mode change the mission did not ask for, at mission time ``t``; ``armed`` as the heartbeat
-    said; ``why`` is the vehicle's last STATUSTEXT before it (empty when it said nothing)."""
+    said; ``why`` is the vehicle's most severe STATUSTEXT since its last mode change, the latest of
+    those (empty when it said nothing)."""
 
     t: float
     previous: str
@@ -62,7 +65,7 @@ class ModeAuthority:
         self._vehicle_sysid = vehicle_sysid
         self._pending: dict[str, int] = {}  # requested mode -> heartbeats seen since
         self._mode = ""
-        self._last_text = ""
+        self._reason: tuple[int, str] | None = None  # (severity, text) of the likeliest reason so far
         self.foreign: list[ForeignModeChange] = []
         self.own_changes = 0
 
@@ -111,8 +114,10 @@ class ModeAuthority:
             if mtype not in ("HEARTBEAT", "STATUSTEXT") or msg.get_srcSystem() != self._vehicle_sysid():
                 return
             if mtype == "STATUSTEXT":
-                self._last_text = msg.text if isinstance(msg.text, str) else bytes(msg.text).decode(errors="replace")
-                self._last_text = self._last_text.rstrip("\x00")
+                text = msg.text if isinstance(msg.text, str) else bytes(msg.text).decode(errors="replace")
+                severity = int(getattr(msg, "severity", mavlink.MAV_SEVERITY_INFO))
+                if self._reason is None or severity <= self._reason[0]:  # more severe (lower), or as severe and later
+                    self._reason = (severity, text.rstrip("\x00"))
                 return
             if msg.autopilot == mavlink.MAV_AUTOPILOT_INVALID:
                 return  # another component's heartbeat (a gimbal, a companion)
@@ -126,11 +131,12 @@ class ModeAuthority:
             if mode in self._pending:
                 self.own_changes += 1
             else:
-                change = ForeignModeChange(float(self._clock()), previous, mode, armed, self._last_text)
+                why = self._reason[1] if self._reason is not None else ""
+                change = ForeignModeChange(float(self._clock()), previous, mode, armed, why)
                 self.foreign.append(change)
                 log.warning("mode %s -> %s not commanded by the mission (%s)", previous, mode, change.why or "no reason given")
             self._pending.pop(mode, None)
-            self._last_text = ""
+            self._reason = None
         elif mode in self._pending:
             self._pending.pop(mode)  # already there: the request is answered
         for requested in list(self._pending):

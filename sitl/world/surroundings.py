@@ -64,6 +64,12 @@ class Surroundings:
         sigs.update({b.label: b.spec.flock_signature for b in self.birds})
         return {k: v for k, v in sigs.items() if v is not None}
 
+    def sign_radar_datagrams(self, sign: Callable[[bytes], bytes]) -> None:
+        """Sign every datagram the radar sends over UDP with ``sign`` (in-process consumers get them plain)."""
+        for consumer in self._radar_consumers:
+            if isinstance(consumer, RadarUdpSender):
+                consumer.sign = sign
+
     def add_radar_consumer(self, consumer: Callable[[bytes], None]) -> None:
         """Hand every radar datagram to ``consumer`` too (e.g. a ``QueueDatagramSource.push``)."""
         self._radar_consumers.append(consumer)
@@ -136,6 +142,12 @@ class InSurroundings:
     def radar_truth(self) -> ScanTruth | None:
         """Scoring only: the last radar scan's track -> object."""
         return self.surroundings.radar_truth
+
+    def sign_radar_datagrams(self, sign: Callable[[bytes], bytes]) -> None:
+        """Sign every datagram the radar sends over UDP with ``sign`` (in-process consumers get them plain)."""
+        for consumer in self._radar_consumers:
+            if isinstance(consumer, RadarUdpSender):
+                consumer.sign = sign
 
     def add_radar_consumer(self, consumer: Callable[[bytes], None]) -> None:
         """Hand every radar datagram to ``consumer`` too (e.g. a ``QueueDatagramSource.push``)."""

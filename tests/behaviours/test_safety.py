@@ -100,6 +100,7 @@ def test_mode_changes_the_mission_asked_for_are_its_own_and_others_are_foreign()
     assert authority.foreign == [] and authority.own_changes == 1
     t[0] = 20.0
     authority.on_receive(_Msg(mav.MAVLink_statustext_message(4, b"GCS Failsafe")))
+    authority.on_receive(_Msg(mav.MAVLink_statustext_message(6, b"EKF3 IMU0 is using GPS")))  # chatter after it
     authority.on_receive(_heartbeat(RTL))
     (change,) = authority.foreign
     assert (change.t, change.previous, change.mode, change.armed, change.why) == (20.0, "LOITER", "RTL", True, "GCS Failsafe")

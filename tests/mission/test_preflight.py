@@ -58,3 +58,22 @@ def test_a_renamed_setting_is_read_under_its_new_name_in_the_old_units():
     newer["RTL_ALT_M"] = 30.0  # ArduCopter 4.7+: RTL_ALT moved to RTL_ALT_M, in metres
     vehicle = _Vehicle(newer)
     assert read_safety_settings(vehicle) == FIELD_READY and "RTL_ALT" in vehicle.asked
+
+
+def test_the_fence_is_read_from_the_simulated_vehicle_and_cuts_the_envelope_down():
+    """The built-in simulator answers PARAM_REQUEST_READ with its FENCE_* values (ArduCopter's
+    defaults, the fence switched on here): the link's envelope becomes 300 - 2 m, 100 - 2 m."""
+    from chaser_bt.geo import GeoPoint
+    from chaser_bt.mission.preflight import read_fence
+    from chaser_bt.vehicle.envelope import FENCE_PARAMS
+    from sitl.bench.in_process import InProcessVehicle
+    from sitl.world.scenario import BootParams, Scenario
+
+    scenario = Scenario("fence", GeoPoint(42.5445, -71.6105, 80.0), boot=BootParams(1.0, 2.0, 3.0),
+                        params={"FENCE_ENABLE": 1.0})
+    v = InProcessVehicle(scenario, seed=1)
+    assert v.run_until(lambda: v.link.frame is not None, 10)
+    v.link.wait = lambda predicate, timeout_s: v.run_until(predicate, timeout_s)
+    env = read_fence(v.link)
+    assert all(name in v.link.params for name in FENCE_PARAMS)
+    assert (env.max_distance_m, env.max_alt_m) == (298.0, 98.0)

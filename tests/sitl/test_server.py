@@ -222,3 +222,32 @@ def test_clients_beyond_the_cap_are_refused_and_the_server_lives_on():
         stop.set()
         thread.join(timeout=WALL_TIMEOUT_S)
     assert not thread.is_alive()
+
+
+def test_the_radar_feed_is_signed_with_the_key_run_verifies_it_with():
+    """`chaser-bt sitl --radar-key` signs each radar datagram: a receiver with the key gets the scan,
+    a receiver with another key gets nothing."""
+    import dataclasses
+    import socket
+
+    from chaser_bt.ground.auth import StreamSigner, StreamVerifier
+    from chaser_bt.radar.report import decode_scan
+    from sitl.world.radar import RadarConfig
+
+    ground = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    ground.bind(("127.0.0.1", 0))
+    ground.settimeout(WALL_TIMEOUT_S)
+    scenario = dataclasses.replace(quick_scenario(), radar=RadarConfig(quick_scenario().home, udp_port=ground.getsockname()[1]))
+    key, stop = bytes(range(32)), threading.Event()
+    thread = threading.Thread(target=serve, args=(scenario,), daemon=True,
+                              kwargs=dict(speedup=20.0, udp_port=0, tcp_port=0, stop=stop, radar_sign=StreamSigner(key).sign))
+    thread.start()
+    try:
+        datagram = ground.recv(65535)
+    finally:
+        stop.set()
+        thread.join(timeout=WALL_TIMEOUT_S)
+        ground.close()
+    assert StreamVerifier(bytes(range(1, 33))).open(datagram) is None
+    payload = StreamVerifier(key).open(datagram)
+    assert payload is not None and decode_scan(payload).seq >= 0

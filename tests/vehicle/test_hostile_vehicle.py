@@ -50,6 +50,36 @@ def test_the_envelope_is_configurable():
     rig.link.goto_enu([0.0, 45.0, 25.0])
 
 
+FENCE = {"FENCE_ENABLE": 1, "FENCE_TYPE": 7, "FENCE_RADIUS": 300.0, "FENCE_ALT_MAX": 100.0, "FENCE_ALT_MIN": -10.0,
+         "FENCE_MARGIN": 2.0}
+
+
+def test_the_envelope_keeps_inside_the_vehicles_fence_less_its_margin():
+    env = CommandEnvelope()
+    # ArduCopter's defaults with the fence on (type 7: maximum altitude, circle, polygon): 298 m, 98 m.
+    inside = env.within_fence(FENCE)
+    assert (inside.max_distance_m, inside.max_alt_m, inside.min_alt_m) == (298.0, 98.0, -20.0)
+    # The minimum altitude too (type 15); a circle wider than the envelope leaves the envelope's.
+    both = env.within_fence({**FENCE, "FENCE_TYPE": 15, "FENCE_RADIUS": 5000.0})
+    assert (both.max_distance_m, both.max_alt_m, both.min_alt_m) == (2000.0, 98.0, -8.0)
+    # Off, half-read, or no usable space: unchanged.
+    assert env.within_fence({**FENCE, "FENCE_ENABLE": 0}) is env
+    assert env.within_fence({k: v for k, v in FENCE.items() if k != "FENCE_MARGIN"}) is env
+    nonsense = env.within_fence({**FENCE, "FENCE_RADIUS": 1.0, "FENCE_ALT_MAX": 1.0})
+    assert (nonsense.max_distance_m, nonsense.max_alt_m) == (2000.0, 500.0)
+
+
+def test_a_target_beyond_the_vehicles_fence_is_not_sent_once_the_fence_is_read():
+    rig = _guided_in_the_air()
+    rig.link.goto_enu([0.0, 350.0, 20.0])  # the fence not read yet: the configured envelope
+    rig.link.params.update(FENCE)  # as PARAM_VALUEs would fill it (chaser_bt.mission.preflight.read_fence)
+    with pytest.raises(UnsafeCommand, match="350 m from home, beyond the envelope's 298 m"):
+        rig.link.goto_enu([0.0, 350.0, 20.0])
+    with pytest.raises(UnsafeCommand, match="outside the envelope's -20..98 m"):
+        rig.link.goto_enu([0.0, 100.0, 99.0])
+    rig.link.goto_enu([0.0, 290.0, 90.0])
+
+
 def test_a_home_that_jumps_two_thousand_km_down_is_dropped_and_targets_stay_relative_to_the_first():
     rig = _guided_in_the_air()
     rig.fake.mav.home_position_send(int(HOME.lat_deg * 1e7), int(HOME.lon_deg * 1e7), -2_147_483_000,

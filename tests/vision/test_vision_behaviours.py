@@ -278,3 +278,26 @@ def test_detector_port_person_yolo_runs_the_person_model():
     pipeline = vision.root.camera.pipeline
     assert pipeline.detector_name == "person_yolo" and pipeline.detector.class_names == ("person",)
     assert pipeline.config.classes == ("person",) and pipeline.config.target_on_ground
+
+
+def test_frames_the_camera_dropped_are_counted_on_the_blackboard():
+    class _Glitchy(_Source):
+        def __init__(self):
+            self.dropped: dict[str, int] = {}
+
+        def read(self, t):  # every other frame is not 8-bit BGR, as VideoCaptureSource counts it
+            if int(round(t * 10)) % 2:
+                self.dropped["not_bgr8"] = self.dropped.get("not_bgr8", 0) + 1
+                return None
+            return super().read(t)
+
+    clock = ManualClock(0.0)
+    tree = load_tree_text("version: 1\ntrees:\n  Test:\n    VisionPipeline: {}\n", source="<test>")
+    sensor = CameraSensor(_Glitchy(), VisionPipeline(CAM, _Detector(), PipelineConfig(detect_every=1, tracker_kinds=(), focus=False)))
+    bt = py_trees.trees.BehaviourTree(tree.root)
+    bt.setup(link=object(), clock=clock, camera=sensor)
+    py_trees.blackboard.Blackboard.set("/vehicle/state", _state())
+    for k in range(6):
+        clock.set(0.1 * k)
+        bt.tick()
+    assert py_trees.blackboard.Blackboard.storage.get("/camera/frames_dropped") == {"not_bgr8": 3}
