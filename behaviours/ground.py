@@ -175,7 +175,7 @@ class GroundDesignation(VehicleBehaviour):
         if self.uplink is None:
             self.feedback_message = "uplink off (chaser-bt run --uplink)"
             return Status.SUCCESS
-        for cmd in self.uplink.poll():
+        for cmd in self.uplink.take("designate"):
             self._set_output("operator_track", cmd.track_id)
         c = self.uplink.counters
         self.feedback_message = f"uplink: {c.accepted} command(s), {sum(c.as_dict().values()) - c.accepted} dropped"

@@ -165,3 +165,34 @@ class RadarCue(_RadarBehaviour):
         custody, event = designate(chosen, pic.t, f"radar confidence {chosen.confidence:.2f}")
         _log([event] if event else [], self.name)
         return custody
+
+
+@register_behaviour
+class CustodyHeld(VehicleBehaviour):
+    """SUCCESS while the designated target is held: designated, not lost, confirmed by the radar within
+    ``max_unconfirmed_s`` and at ``min_confidence`` or more; FAILURE otherwise (a safety branch or a
+    fallback can act on a target the mission no longer holds)."""
+
+    NODE_KIND = NodeKind.CONDITION
+    INPUT_PORTS = {
+        "custody": input_port(Custody, "The designated target's custody", required=False, default_key=CUSTODY_KEY),
+        "max_unconfirmed_s": input_port(float, "Unconfirmed longer than this, the target is not held (s)", default=5.0,
+                                        minimum=0),
+        "min_confidence": input_port(float, "Least custody confidence that holds it (0..1)", default=0.0, minimum=0,
+                                     maximum=1),
+        "state": state_port(),
+    }
+    OUTPUT_PORTS: dict = {}
+
+    def update(self) -> Status:
+        custody: Custody | None = optional_input(self, "custody")
+        now = self._now()
+        if custody is None:
+            self.feedback_message = "no target designated"
+            return Status.FAILURE
+        unconfirmed, confidence = custody.since_confirmed(now), custody.confidence(now)
+        self.feedback_message = (f"target {custody.target_id} {'lost' if custody.lost else 'held'}, unconfirmed "
+                                 f"{unconfirmed:.1f} s, confidence {confidence:.2f}")
+        held = (not custody.lost and unconfirmed <= self.get_input("max_unconfirmed_s")
+                and confidence >= self.get_input("min_confidence"))
+        return Status.SUCCESS if held else Status.FAILURE

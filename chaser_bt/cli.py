@@ -150,6 +150,9 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                    help="the uplink's key, MAVLink signing's format (required with --uplink: it is never unsigned)")
     p.add_argument("--uplink-from", action="append", type=arg.ip_address, metavar="IP",
                    help="believe uplink commands only from this address (repeat for several; default: any that signs)")
+    p.add_argument("--reload-from", type=Path, metavar="FILE",
+                   help="retask in flight: each time FILE changes (and settles) its tree, checked first, replaces the "
+                        "mission at a safe point (docs/trees.md, \"Retasking\"; default: no file)")
     p.add_argument("--camera", metavar="SOURCE", help="video file, stream URL or device index for the on-board camera (default: none)")
     p.add_argument("--camera-size", type=_size, metavar="WxH", help="resize camera frames to this size, px (default: as captured)")
     p.add_argument("--perception", choices=("thread", "inline"), default="thread",
@@ -362,6 +365,7 @@ def _fly(args: argparse.Namespace, tree, monitor) -> int:
         link.close()
         raise _BadInput(str(exc)) from None
     runner = MissionRunner(tree, link, clock, rate_hz=args.rate_hz, resources=resources)
+    _retask_sources(runner, args, resources)
     if monitor is not None:
         monitor.attach(runner)
     if args.show_ticks:
@@ -551,6 +555,26 @@ def _load_scenario(path: Path):
         raise _BadInput(str(exc)) from None
     except OSError as exc:
         raise _BadInput(f"{path}: {exc.strerror or exc}") from None
+
+
+def _retask_sources(runner, args: argparse.Namespace, resources: dict) -> None:
+    """Where retasks come from on ``run``: the watched file and the uplink's ``retask`` commands."""
+    from chaser_bt.mission.retask import FileWatcher, RetaskRequest
+
+    if args.reload_from is not None:
+        runner.retask_sources.append(FileWatcher(args.reload_from).poll)
+    uplink = resources.get("uplink")
+    if uplink is not None:
+        base = Path(args.tree).parent
+
+        def from_uplink() -> RetaskRequest | None:
+            taken = uplink.take("retask")
+            if not taken:
+                return None
+            cmd = taken[-1]  # the latest wins; earlier ones in the same poll are superseded
+            return RetaskRequest(cmd.tree.encode("utf-8"), cmd.name, base, "uplink", cmd.sysid)
+
+        runner.retask_sources.append(from_uplink)
 
 
 def _sitl(args: argparse.Namespace) -> int:

@@ -12,12 +12,17 @@ ground stream (:mod:`chaser_bt.ground.auth`), around a version-1 JSON message
 
 =============  ==================================================================================
 ``designate``  ``track_id`` (a radar track id, 0 .. 2^31-1): make that track's object the target
+``retask``     ``name`` (the tree's file name: ``.xml`` is BT.CPP XML, else YAML), ``tree`` (its
+               text), ``sysid`` (the vehicle it is for): fly this tree instead
+               (:mod:`chaser_bt.mission.retask`)
 =============  ==================================================================================
 
 :class:`UplinkReceiver` reads them from a UDP port without blocking: a datagram that is unsigned,
 forged, replayed, from a host not allowed, malformed or an unknown command is dropped and counted
-(:class:`UplinkCounters`), never raised. :func:`designate_datagram` builds one (the CLI's
-``chaser-bt designate`` sends it).
+(:class:`UplinkCounters`), never raised. Each consumer takes its own kind (:meth:`UplinkReceiver.take`):
+the ``GroundDesignation`` leaves the designations, the mission runner the retasks.
+:func:`designate_datagram` and :func:`retask_datagram` build them (``chaser-bt designate``,
+``chaser-bt retask``).
 """
 
 from __future__ import annotations
@@ -31,21 +36,33 @@ from typing import Any, Iterable
 from chaser_bt.ground.auth import StreamSigner, StreamVerifier
 from chaser_bt.ground.protocol import json_datagram, parse_datagram
 
-__all__ = ["COMMANDS", "GroundCommand", "UplinkCounters", "UplinkReceiver", "designate_datagram", "parse_command"]
+__all__ = ["COMMANDS", "GroundCommand", "UplinkCounters", "UplinkReceiver", "designate_datagram", "parse_command",
+           "retask_datagram"]
 
 log = logging.getLogger(__name__)
 
-COMMANDS = ("designate",)
+COMMANDS = ("designate", "retask")
 MAX_TRACK_ID = 2**31 - 1
 
 
 @dataclass(frozen=True)
 class GroundCommand:
-    """One command the aircraft believed: ``kind`` (``designate``), its ``track_id`` and ``seq``."""
+    """One command the aircraft believed: its ``kind`` and ``seq``; a designation's ``track_id``; a
+    retask's tree ``name``, ``tree`` text and target ``sysid``."""
 
     kind: str
-    track_id: int
     seq: int
+    track_id: int | None = None
+    name: str | None = None
+    tree: str | None = None
+    sysid: int | None = None
+
+
+def _integer(msg: dict, key: str, lo: int, hi: int) -> int:
+    v = msg.get(key)
+    if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+        raise ValueError(f"{msg.get('command')}: {key} {v!r}: expected an integer {lo}..{hi}")
+    return v
 
 
 def parse_command(payload: bytes) -> GroundCommand:
@@ -60,13 +77,17 @@ def parse_command(payload: bytes) -> GroundCommand:
     kind = msg.get("command")
     if kind not in COMMANDS:
         raise ValueError(f"command {kind!r}: expected one of {', '.join(COMMANDS)}")
-    tid = msg.get("track_id")
-    if isinstance(tid, bool) or not isinstance(tid, int) or not 0 <= tid <= MAX_TRACK_ID:
-        raise ValueError(f"designate: track_id {tid!r}: expected an integer 0..{MAX_TRACK_ID}")
     seq = msg.get("seq")
     if isinstance(seq, bool) or not isinstance(seq, int):
-        raise ValueError(f"command: seq {seq!r}: expected an integer")
-    return GroundCommand(kind, tid, seq)
+        raise ValueError(f"{kind}: seq {seq!r}: expected an integer")
+    if kind == "designate":
+        return GroundCommand(kind, seq, track_id=_integer(msg, "track_id", 0, MAX_TRACK_ID))
+    name, tree = msg.get("name"), msg.get("tree")
+    if not isinstance(name, str) or not name or "/" in name or "\\" in name:
+        raise ValueError(f"retask: name {name!r}: expected a file name such as chase.yaml")
+    if not isinstance(tree, str):
+        raise ValueError(f"retask: tree: expected the tree file's text, got {type(tree).__name__}")
+    return GroundCommand(kind, seq, name=name, tree=tree, sysid=_integer(msg, "sysid", 1, 255))
 
 
 def designate_datagram(signer: StreamSigner, track_id: int, seq: int = 0, unix_time: float | None = None) -> bytes:
@@ -75,6 +96,18 @@ def designate_datagram(signer: StreamSigner, track_id: int, seq: int = 0, unix_t
         raise ValueError(f"track id {track_id!r}: expected an integer 0..{MAX_TRACK_ID}")
     t = time.time() if unix_time is None else unix_time
     return signer.sign(json_datagram("command", seq, t, {"command": "designate", "track_id": track_id}))
+
+
+def retask_datagram(signer: StreamSigner, name: str, tree_text: str, sysid: int, seq: int = 0,
+                    unix_time: float | None = None) -> bytes:
+    """The signed datagram that retasks vehicle ``sysid`` with the tree file ``name`` of text ``tree_text``.
+
+    Raises:
+        ValueError: the tree does not fit one datagram.
+    """
+    t = time.time() if unix_time is None else unix_time
+    return signer.sign(json_datagram("command", seq, t, {"command": "retask", "name": name, "tree": tree_text,
+                                                         "sysid": int(sysid)}))
 
 
 @dataclass
@@ -106,6 +139,7 @@ class UplinkReceiver:
         self.allowed_hosts = frozenset(allowed_hosts)
         self.max_per_poll = max_per_poll
         self.counters = UplinkCounters()
+        self._queued: dict[str, list[GroundCommand]] = {kind: [] for kind in COMMANDS}
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._sock.setblocking(False)
         self._sock.bind((host, port))
@@ -114,8 +148,15 @@ class UplinkReceiver:
     def address(self) -> tuple[str, int]:
         return self._sock.getsockname()
 
+    def take(self, kind: str) -> list[GroundCommand]:
+        """The commands of ``kind`` received so far and not yet taken, oldest first (polls first)."""
+        self.poll()
+        taken, self._queued[kind] = self._queued[kind], []
+        return taken
+
     def poll(self) -> list[GroundCommand]:
-        """Every believable command that arrived since the last poll, oldest first."""
+        """Every believable command that arrived since the last poll, oldest first (each is also kept
+        for :meth:`take` of its kind)."""
         out: list[GroundCommand] = []
         for _ in range(self.max_per_poll):
             try:
@@ -140,7 +181,9 @@ class UplinkReceiver:
                 log.warning("uplink: dropped a signed datagram from %s: %s", src, e)
                 continue
             self.counters.accepted += 1
-            log.info("uplink: %s track %d from %s (seq %d)", cmd.kind, cmd.track_id, src, cmd.seq)
+            what = f"track {cmd.track_id}" if cmd.kind == "designate" else f"{cmd.name} for vehicle {cmd.sysid}"
+            log.info("uplink: %s %s from %s (seq %d)", cmd.kind, what, src, cmd.seq)
+            self._queued[cmd.kind].append(cmd)
             out.append(cmd)
         return out
 

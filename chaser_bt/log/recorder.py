@@ -201,6 +201,7 @@ class Recorder:
         self._runner = runner
         self._logged_changes = len(runner.tick_log)
         runner.on_tick(self._guarded(self._on_tick))
+        runner.on_retask(self._guarded(lambda r: self.write(S.TOPIC_RETASK, S.json_bytes(r.as_dict()), r.t)))
         link.add_listener(on_receive=self._guarded(self._on_mavlink_in), on_send=self._guarded(self._on_mavlink_out))
         self._guarded(self._record_preamble)(link)
         self._wrap_link(link)

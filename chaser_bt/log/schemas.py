@@ -27,7 +27,7 @@ from scipy.spatial.transform import Rotation
 
 __all__ = [
     "ChannelSpec", "CHANNELS", "REPLAY_TOPICS", "PROFILE", "FORMAT_VERSION",
-    "TOPIC_MAVLINK_READ", "TOPIC_MAVLINK_IN", "TOPIC_MAVLINK_OUT", "TOPIC_TREE", "TOPIC_BLACKBOARD",
+    "TOPIC_MAVLINK_READ", "TOPIC_MAVLINK_IN", "TOPIC_MAVLINK_OUT", "TOPIC_TREE", "TOPIC_RETASK", "TOPIC_BLACKBOARD",
     "TOPIC_RADAR_DATAGRAMS", "TOPIC_RADAR_PICTURE", "TOPIC_TARGET", "TOPIC_BELIEF", "TOPIC_CAMERA",
     "TOPIC_CAMERA_BOXES", "TOPIC_SCENE_RADAR", "TOPIC_SCENE_TARGET", "TOPIC_TF",
     "jsonable", "json_bytes", "b64", "unb64", "timestamp", "ns",
@@ -40,6 +40,7 @@ TOPIC_MAVLINK_READ = "/mavlink/read"  # raw bytes the link read, per poll, with 
 TOPIC_MAVLINK_IN = "/mavlink/in"  # every decoded message from the vehicle side
 TOPIC_MAVLINK_OUT = "/mavlink/out"  # every message the mission sent
 TOPIC_TREE = "/tree/status"  # one per tick: status changes, root status, tip and its feedback
+TOPIC_RETASK = "/tree/retask"  # every retask offered in flight, taken or not, with both trees' hashes
 TOPIC_BLACKBOARD = "/blackboard"  # every blackboard write
 TOPIC_RADAR_DATAGRAMS = "/radar/datagrams"  # the datagrams the radar feed read, per read (replay)
 TOPIC_RADAR_PICTURE = "/radar/picture"  # the feed's picture: tracks and the correlator's association
@@ -88,6 +89,10 @@ CHANNELS: dict[str, ChannelSpec] = {c.topic: c for c in (
     _json_channel(TOPIC_TREE, "chaser_bt.TreeTick", {
         "t": _NUM, "tick": _INT, "root": _STR, "tip": _STR,
         "changes": {"type": "array", "items": {"type": "object", "properties": {"node": _STR, "old": _STR, "new": _STR}}},
+    }),
+    _json_channel(TOPIC_RETASK, "chaser_bt.Retask", {
+        "t": _NUM, "accepted": {"type": "boolean"}, "origin": _STR, "name": _STR, "old_hash": _STR,
+        "new_hash": _STR, "message": _STR,
     }),
     _json_channel(TOPIC_BLACKBOARD, "chaser_bt.BlackboardWrite",
                   {"key": _STR, "client": _STR, "activity": _STR, "value": _ANY}),

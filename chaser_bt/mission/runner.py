@@ -35,6 +35,7 @@ import py_trees
 from chaser_bt.clock import Clock
 from chaser_bt.mission.outcome import PHASE_KEY, FlightWitness, Outcome, Verdict, judge
 from chaser_bt.mission.resources import missing_resources
+from chaser_bt.mission.retask import Retask, RetaskRejected, RetaskRequest, prepare, tree_hash
 from chaser_bt.tree import MissionTree, NodeKind
 from chaser_bt.vehicle import VehicleError, VehicleLink, VehicleQuiet
 
@@ -142,6 +143,11 @@ class MissionRunner:
         self.witness = FlightWitness()
         self.tick_log: list[StatusChange] = []
         self._tick_listeners: list[Callable[[list[StatusChange]], None]] = []
+        self._retask_listeners: list[Callable[[Retask], None]] = []
+        self._visitors: list[py_trees.visitors.VisitorBase] = []
+        self.retask_sources: list[Callable[[], RetaskRequest | None]] = []
+        self.retasks: list[Retask] = []
+        self._tree_hash = tree_hash(tree.source.read_bytes()) if tree.source is not None and tree.source.is_file() else ""
         self._last_status: dict[object, py_trees.common.Status] = {}
         self._changed_last_tick: set = set()
         self._set_up = False
@@ -188,7 +194,76 @@ class MissionRunner:
 
     def add_visitor(self, visitor: py_trees.visitors.VisitorBase) -> None:
         """Run a py_trees visitor on the nodes every tick visits (Groot2's monitor sees the ticked nodes)."""
+        self._visitors.append(visitor)
         self._bt.add_visitor(visitor)
+
+    def on_retask(self, listener: Callable[[Retask], None]) -> None:
+        """Call ``listener(retask)`` after every retask attempt, taken or not (after the swap when taken)."""
+        self._retask_listeners.append(listener)
+
+    # -- retasking (chaser_bt.mission.retask) ----------------------------------------------------
+
+    def poll_retasks(self) -> None:
+        """Offer every retask the sources have (between ticks: the safe point)."""
+        for source in self.retask_sources:
+            try:
+                request = source()
+            except Exception:  # a source must never stop the flight
+                log.exception("a retask source raised")
+                continue
+            if request is not None:
+                self.retask(request)
+
+    def retask(self, request: RetaskRequest) -> Retask:
+        """Check ``request`` against this flight and, if it passes, make its tree the mission.
+
+        The running tree is halted (its leaves' exit holds), the aircraft held (hover) and the new
+        tree, already set up, ticks from the next tick. A rejected request changes nothing; either
+        way the attempt is logged and kept in :attr:`retasks`. Never raises.
+        """
+        now = self.clock.now()
+        new_hash = tree_hash(request.data)
+        try:
+            tree = prepare(request, self.link, self.resources)
+            bt = _BehaviourTree(tree.root)
+            try:
+                bt.setup(link=self.link, clock=self.clock, **self.resources)
+            except Exception as exc:  # a leaf refused this flight (a weights file, a key file, a port)
+                raise RetaskRejected(f"retask {request.name} ({request.origin}): {type(exc).__name__}: "
+                                     f"{str(exc).splitlines()[0] if str(exc) else ''}") from None
+        except RetaskRejected as exc:
+            record = Retask(now, False, request.origin, request.name, self._tree_hash, new_hash, str(exc))
+            log.warning("%s: the mission goes on unchanged", exc)
+        else:
+            self._hand_over(bt, tree)
+            message = f"tree {self._tree_hash or '(text)'} -> {new_hash}, aircraft held at the hand-over"
+            record = Retask(now, True, request.origin, request.name, self._tree_hash, new_hash, message)
+            self._tree_hash = new_hash
+            log.info("retask %s (%s) taken: %s", request.name, request.origin, message)
+        self.retasks.append(record)
+        for listener in self._retask_listeners:
+            listener(record)
+        return record
+
+    def _hand_over(self, bt: py_trees.trees.BehaviourTree, tree: MissionTree) -> None:
+        """Halt the running tree, hold the aircraft, make ``bt`` the mission."""
+        try:
+            self._bt.root.stop(py_trees.common.Status.INVALID)
+        except Exception:
+            log.exception("a behaviour raised while being halted for a retask")
+        self._record_status_changes(self.clock.now())
+        try:
+            self.link.hover()
+        except Exception as exc:  # the halted leaves' own holds went first; the autopilot's failsafes remain
+            log.error("could not send hover at the retask: %s", exc)
+        try:
+            self._bt.shutdown()
+        except Exception:
+            log.exception("a behaviour raised while shutting down for a retask")
+        self.tree, self._bt = tree, bt
+        for visitor in self._visitors:
+            self._bt.add_visitor(visitor)
+        self._last_status = {}
 
     # -- ticking ----------------------------------------------------------------------------
 
@@ -348,6 +423,7 @@ class MissionRunner:
                 return self._result(RunStatus.ERROR, message)
             while not should_stop():
                 self.link.poll()
+                self.poll_retasks()
                 if self.tick_if_due() and self.finished:
                     status = RunStatus.SUCCESS if self.status == py_trees.common.Status.SUCCESS else RunStatus.FAILURE
                     message = self.end_message()

@@ -10,8 +10,9 @@ watches a :class:`~chaser_bt.vehicle.VehicleLink` from both sides:
 - every change of HEARTBEAT.custom_mode from the vehicle is matched against the pending requests:
   a requested mode is the mission's own, anything else is *foreign* and is logged with the time
   and the STATUSTEXT that came with it (ArduCopter names its failsafes: "GCS Failsafe", ...): of
-  what the vehicle said since the last mode change, the most severe (a failsafe is CRITICAL or a
-  WARNING; "EKF3 IMU0 is using GPS" is INFO), the latest of those.
+  what the vehicle said since the last mode change at NOTICE or above, the most severe (a failsafe
+  is CRITICAL or a WARNING; "Arming motors" and "EKF3 IMU0 is using GPS" are INFO: never a reason),
+  the latest of those.
 
 A request that the vehicle has not honoured within :data:`PENDING_HEARTBEATS` heartbeats is
 forgotten (a refused request must not excuse a later operator's switch to the same mode); the
@@ -42,8 +43,8 @@ _MODE_OF_COMMAND = {mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH: "RTL", mavlink.MAV_CMD
 @dataclass(frozen=True)
 class ForeignModeChange:
     """A mode change the mission did not ask for, at mission time ``t``; ``armed`` as the heartbeat
-    said; ``why`` is the vehicle's most severe STATUSTEXT since its last mode change, the latest of
-    those (empty when it said nothing)."""
+    said; ``why`` is the vehicle's most severe STATUSTEXT (NOTICE or above) since its last mode
+    change, the latest of those (empty when it said none)."""
 
     t: float
     previous: str
@@ -116,7 +117,8 @@ class ModeAuthority:
             if mtype == "STATUSTEXT":
                 text = msg.text if isinstance(msg.text, str) else bytes(msg.text).decode(errors="replace")
                 severity = int(getattr(msg, "severity", mavlink.MAV_SEVERITY_INFO))
-                if self._reason is None or severity <= self._reason[0]:  # more severe (lower), or as severe and later
+                notice = severity <= mavlink.MAV_SEVERITY_NOTICE  # a reason, not chatter ("Arming motors" is INFO)
+                if notice and (self._reason is None or severity <= self._reason[0]):  # more severe, or as severe and later
                     self._reason = (severity, text.rstrip("\x00"))
                 return
             if msg.autopilot == mavlink.MAV_AUTOPILOT_INVALID:

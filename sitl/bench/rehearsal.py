@@ -26,8 +26,9 @@ import numpy as np
 import py_trees
 
 from chaser_bt.cli_args import AUTOPILOTS
-from chaser_bt.log.trace import FlightTrace
+from chaser_bt.log.trace import FlightTrace, TraceEvent
 from chaser_bt.mission.resources import required_resources
+from chaser_bt.mission.retask import RetaskRequest
 from chaser_bt.mission.runner import MissionRunner, RunStatus, StatusChange
 from chaser_bt.tree import MissionTree, load_tree, reset_blackboard
 from chaser_bt.vehicle import LinkConfig, VehicleError, VehicleQuiet
@@ -91,6 +92,7 @@ class RehearsalReport:
     custody_at_end: bool | None = None  # the last object followed is the designated one
     followed_s_by_object: dict[str, float] | None = None  # seconds each object was followed
     designated_object: str | None = None  # the object the mission designated (truth: its radar track's)
+    retasks: list[dict] | None = None  # every retask offered (chaser_bt.mission.retask.Retask.as_dict), taken or not
     sensors: list[str] = field(default_factory=list)  # the sensors the tree uses (of those the rehearsal provides)
     radar_pose: str | None = None  # calibrated | surveyed
     radar_pose_err_m: float | None = None  # mission's radar position minus the truth
@@ -210,6 +212,9 @@ def rehearse(
     if on_tick is not None:
         runner.on_tick(on_tick)
     observer = RehearsalObserver(sim, vehicle.link, runner, mission_sensors, trace=trace)
+    runner.on_retask(lambda r: observer.events.append(
+        TraceEvent(r.t, "retask", f"{r.name}: {'taken' if r.accepted else 'refused'}, {r.message}")))
+    scheduled = list(scenario.retasks)
     sar = SarObserver(sim)
     scorer = _Scorer()
     battery_start = sim.autopilot.battery().remaining_pct
@@ -225,6 +230,10 @@ def rehearse(
             on_start(runner, vehicle, mission_sensors.resources)
         while sim.time_s < scenario.time_limit_s:
             vehicle.step()
+            while scheduled and sim.time_s >= scheduled[0].at_s:  # between ticks: the retask's safe point
+                due = scheduled.pop(0)
+                runner.retask(RetaskRequest(due.tree.read_bytes(), due.tree.name, due.tree.parent,
+                                            f"scenario at {due.at_s:g} s"))
             truth = sim.truth
             scorer.observe(truth)
             safety.observe(sim.time_s, truth, sim.autopilot.mode, sim.autopilot.armed)
@@ -304,6 +313,7 @@ def rehearse(
         radar_pose_err_m=pose_err[0],
         radar_yaw_err_deg=pose_err[1],
         sensors_wall_s=round(sensors_wall, 3),
+        retasks=[r.as_dict() for r in runner.retasks] or None,
     )
     meta: dict = {"tree": tree.name, "scenario": scenario.name, "seed": seed, "outcome": outcome}
     people = people_enu(sim.scenario, sim_time_s)

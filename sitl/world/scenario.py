@@ -48,7 +48,7 @@ from sitl.world.intruders import (
 from sitl.world.radar.config import RadarClutter, RadarConfig, RadarFailureRates, RadarSignature
 from sitl.world.targets import CirclePath, StaticPoint, TargetPath, WaypointPath
 
-__all__ = ["ScenarioError", "BootParams", "Fault", "FAULT_KINDS", "GCS_MODES", "GroundStationEvent", "PilotEvent",
+__all__ = ["ScheduledRetask", "ScenarioError", "BootParams", "Fault", "FAULT_KINDS", "GCS_MODES", "GroundStationEvent", "PilotEvent",
            "PilotScript", "RADAR_BLIND_KINDS", "Scenario", "ScriptedTarget", "BirdSpec", "load_scenario"]
 
 INTRUDER_AIRFRAMES = ("phantom", "s1000")  # drone models the rendered camera draws (sitl/world/camera/models.py)
@@ -89,6 +89,15 @@ class ScriptedTarget:
 
 
 @dataclass(frozen=True)
+class ScheduledRetask:
+    """A retask a rehearsal gives the mission at simulated time ``at_s``: fly the tree file ``tree``
+    instead (the simulator ignores it; ``sitl.bench.rehearsal`` offers it to the mission runner)."""
+
+    at_s: float
+    tree: Path
+
+
+@dataclass(frozen=True)
 class Scenario:
     """Everything the simulator needs to start a run."""
 
@@ -109,6 +118,7 @@ class Scenario:
     ground_station: tuple[GroundStationEvent, ...] = ()
     camera_world: WorldSpec = field(default_factory=WorldSpec)  # what the rendered camera looks at
     birds: tuple[BirdSpec, ...] = ()
+    retasks: tuple[ScheduledRetask, ...] = ()
 
     @property
     def lighting(self) -> LightingOverride | None:
@@ -210,7 +220,8 @@ class _Parser:
         if not isinstance(d, Mapping):
             raise self.fail("", "a mapping", d)
         allowed = ("name", "home", "wind", "airframe", "params", "boot", "faults", "time_limit_s", "start_unix_s",
-                   "radar", "targets", "intruders", "pilot", "ground_station", "camera_world", "birds", "lighting")
+                   "radar", "targets", "intruders", "pilot", "ground_station", "camera_world", "birds", "lighting",
+                   "retask")
         problems: list[str] = []
 
         def checked(read, *args, default=None):
@@ -241,6 +252,7 @@ class _Parser:
             targets=targets,
             pilot=checked(self.pilot, top.get("pilot")),
             ground_station=checked(self.ground_station, top.get("ground_station")),
+            retasks=checked(self.retasks, top.get("retask"), default=()),
             camera_world=checked(self.camera_world, top.get("camera_world"), default=WorldSpec()),
             intruders=checked(self.intruders, top.get("intruders"), {t.name for t in targets},
                               int(params.get("SYSID_THISMAV", 1))),
@@ -576,6 +588,25 @@ class _Parser:
                 raise self.fail(f"{path}.mode", "one of " + ", ".join(GCS_MODES), mode)
             out.append(GroundStationEvent(self.number(e, "at_s", path, None, minimum=0.0), mode))
         return tuple(sorted(out, key=lambda ev: ev.at_s))
+
+    def retasks(self, d: Any) -> tuple[ScheduledRetask, ...]:
+        """``retask: [{at_s, tree}]``: tree files relative to the scenario's folder, existing, in time order."""
+        if d is None:
+            return ()
+        if not isinstance(d, list):
+            raise self.fail("retask", "a list of {at_s, tree} entries", d)
+        base = Path(self.source).parent if not self.source.startswith("<") else Path(".")
+        out = []
+        for i, item in enumerate(d):
+            path = f"retask[{i}]"
+            e = self.mapping(item, path, ("at_s", "tree"))
+            tree = e.get("tree")
+            if not isinstance(tree, str) or not tree:
+                raise self.fail(f"{path}.tree", "a tree file, relative to the scenario's folder", tree)
+            if not (base / tree).is_file():
+                raise self.fail(f"{path}.tree", f"an existing tree file (no {base / tree})", tree)
+            out.append(ScheduledRetask(self.number(e, "at_s", path, None, minimum=0.0), base / tree))
+        return tuple(sorted(out, key=lambda r: r.at_s))
 
     # -- intruders: Phantom-like drones with their own MAVLink (sitl/world/intruders.py) ----------------
 

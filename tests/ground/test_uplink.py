@@ -11,7 +11,7 @@ import pytest
 
 from chaser_bt.ground.auth import StreamSigner
 from chaser_bt.ground.protocol import json_datagram
-from chaser_bt.ground.uplink import GroundCommand, UplinkReceiver, designate_datagram, parse_command
+from chaser_bt.ground.uplink import GroundCommand, UplinkReceiver, designate_datagram, parse_command, retask_datagram
 
 KEY = bytes(range(32))
 OTHER_KEY = bytes(range(1, 33))
@@ -51,7 +51,7 @@ def test_a_signed_designation_is_believed_and_the_rest_is_dropped_by_kind():
     assert rx.poll() == []  # nothing yet: returns at once
     _send(port, good, unknown, negative, boolean, garbage, plain, forged, good)  # the last: a replay
     cmds = _poll(rx, 8)
-    assert cmds == [GroundCommand("designate", 4117, 1)]
+    assert cmds == [GroundCommand("designate", 1, track_id=4117)]
     c = rx.counters
     assert (c.accepted, c.malformed) == (1, 4)
     assert c.auth == {"unsigned": 1, "forged": 1, "replayed": 1}
@@ -72,6 +72,23 @@ def test_parse_command_names_the_bad_field():
         parse_command(json_datagram("status", 1, 0.0, {}))
     with pytest.raises(ValueError, match="track id"):
         designate_datagram(StreamSigner(KEY), 2**31)
+    retask = {"v": 1, "type": "command", "seq": 2, "command": "retask", "name": "hover.yaml", "tree": "x", "sysid": 1}
+    assert parse_command(json.dumps(retask).encode()) == GroundCommand("retask", 2, name="hover.yaml", tree="x", sysid=1)
+    with pytest.raises(ValueError, match="name '../x.yaml'"):
+        parse_command(json.dumps({**retask, "name": "../x.yaml"}).encode())
+    with pytest.raises(ValueError, match="sysid 0"):
+        parse_command(json.dumps({**retask, "sysid": 0}).encode())
+
+
+def test_each_consumer_takes_its_own_kind():
+    rx = UplinkReceiver("127.0.0.1", 0, KEY)
+    signer = StreamSigner(KEY)
+    _send(rx.address[1], designate_datagram(signer, 7, seq=1), retask_datagram(signer, "hover.yaml", "version: 1", 1, seq=2))
+    _poll(rx, 2)
+    assert [c.track_id for c in rx.take("designate")] == [7] and rx.take("designate") == []
+    (retask,) = rx.take("retask")
+    assert (retask.name, retask.tree, retask.sysid) == ("hover.yaml", "version: 1", 1)
+    rx.close()
 
 
 def test_ground_designation_writes_the_operators_track_and_is_off_without_an_uplink():

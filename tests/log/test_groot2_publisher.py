@@ -317,3 +317,14 @@ def test_run_serves_groot2_while_flying_the_simulator(tmp_path, capsys):
     for p in (port, port + 1):
         with socket.socket() as s:
             s.bind(("127.0.0.1", p))
+
+
+def test_a_retask_serves_the_new_tree_under_a_new_tree_id(served):
+    tree, publisher, client = served
+    _, (header_before, xml_before) = client.ask("T")
+    other = load_tree_text("version: 1\ntrees:\n  Other:\n    Sequence:\n      children:\n        - AlwaysSuccess: {}\n",
+                           source="<retask>")
+    publisher.serve_tree(other)
+    _, (header_after, xml_after) = client.ask("T")
+    assert b'ID="Other"' in xml_after and b'ID="Other"' not in xml_before
+    assert header_after[6:] != header_before[6:]  # the reply header's tree id: Groot2 reloads on a new one

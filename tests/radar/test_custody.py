@@ -148,3 +148,33 @@ def test_a_dash_at_the_phantoms_acceleration_keeps_the_carrying_track():
         pics.append(picture(k * dt, track(1, k * dt, (x, 100, 30), (v_radar, 0, 0))))
     c, ev = fly(c, pics)
     assert ev == [] and c.track_id == 1 and c.velocity_enu[0] < -15.0
+
+
+def test_custody_held_says_whether_the_tree_still_holds_its_target():
+    import py_trees
+
+    from chaser_bt.clock import ManualClock
+    from chaser_bt.tree import load_tree_text
+
+    clock = ManualClock(0.0)
+    tree = load_tree_text("version: 1\ntrees:\n  T:\n    CustodyHeld: {max_unconfirmed_s: 3.0, min_confidence: 0.5}\n",
+                          source="<test>")
+    bt = py_trees.trees.BehaviourTree(tree.root)
+    bt.setup(link=object(), clock=clock)
+    py_trees.blackboard.Blackboard.set("/vehicle/state", None)
+    py_trees.blackboard.Blackboard.unset("/target/custody")
+    statuses = []
+    bt.tick()
+    statuses.append(bt.root.status)  # nothing designated
+    py_trees.blackboard.Blackboard.set("/target/custody", start(t=0.0))
+    for t in (1.0, 2.5, 3.5):  # confidence exp(-t / 4): 0.78, 0.54, 0.42
+        clock.set(t)
+        bt.tick()
+        statuses.append(bt.root.status)
+    c = start(t=0.0)
+    from dataclasses import replace
+    py_trees.blackboard.Blackboard.set("/target/custody", replace(c, lost=True))
+    bt.tick()
+    statuses.append(bt.root.status)
+    S, F = py_trees.common.Status.SUCCESS, py_trees.common.Status.FAILURE
+    assert statuses == [F, S, S, F, F]

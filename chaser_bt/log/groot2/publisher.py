@@ -76,6 +76,7 @@ class Groot2Publisher:
             import zmq
         except ImportError as exc:  # pragma: no cover - pyzmq is a dependency
             raise Groot2Error("the Groot2 monitor needs pyzmq (pip install pyzmq)") from exc
+        self._registry = registry
         self.description: MonitoredTree = describe_tree(tree, registry)
         self.port, self.host = port, host
         self.tree_id = new_tree_id()
@@ -108,8 +109,21 @@ class Groot2Publisher:
     # -- the tick side ----------------------------------------------------------------------
 
     def attach(self, runner: Any) -> None:
-        """Follow ``runner``'s ticks (a :class:`~chaser_bt.mission.runner.MissionRunner`)."""
+        """Follow ``runner``'s ticks (a :class:`~chaser_bt.mission.runner.MissionRunner`), and its tree
+        when a retask replaces it."""
         runner.add_visitor(self.visitor)
+        runner.on_retask(lambda retask: self.serve_tree(runner.tree) if retask.accepted else None)
+
+    def serve_tree(self, tree: MissionTree) -> None:
+        """Serve ``tree`` from now on (a retask): a new tree id, so Groot2 asks for the new FULLTREE."""
+        description = describe_tree(tree, self._registry)
+        with self._lock:
+            self.description = description
+            self.tree_id = new_tree_id()
+            self._mirror = StatusMirror(description.nodes)
+            self._status = self._mirror.payload()
+            self._transitions.clear()
+        log.info("Groot2 monitor: now serving tree %s (%d nodes)", tree.name, len(description.nodes))
 
     def tick_done(self, ticked: Mapping[uuid.UUID, Sequence[py_trees.common.Status]]) -> None:
         """After a tick: mirror the statuses, store the STATUS payload and, if recording, the transitions.
