@@ -94,6 +94,8 @@ class _Follow(CommandingBehaviour):
         "measured_rates": input_port(bool, "Derivative terms from the target's measured velocity (else from the "
                                      "filtered process variables)", default=True),
         "give_up_after_s": input_port(float, "FAILURE after this long stale (s); 0 = keep hovering", default=0.0, minimum=0),
+        "min_range_m": input_port(float, "Closer than this slant range (m), GUIDED backs off along the line of sight "
+                                  "and climbs; 0 = off", default=0.0, minimum=0),
         "state": state_port(),
     }
 
@@ -112,7 +114,8 @@ class _Follow(CommandingBehaviour):
                               use_roll=self.get_input("use_roll"), feed_forward=self.get_input("feed_forward"),
                               stale_after_s=self.get_input("stale_after_s"),
                               max_lean_rad=math.radians(self.get_input("max_lean_deg")) or None,
-                              measured_rates=self.get_input("measured_rates"), **self.config_options())
+                              measured_rates=self.get_input("measured_rates"), min_range_m=self.get_input("min_range_m"),
+                              **self.config_options())
         link = self._link()
         for names in STICK_PARAMS:  # the stick mapping is the vehicle's: ask for its parameters
             if not any(name in link.params for name in names):

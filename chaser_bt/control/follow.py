@@ -27,6 +27,11 @@ Options the paper left out:
   loops: the line-of-sight rate to yaw, the target's climb rate to climb, and a velocity-matching
   term along the nose (and across it with roll) to the accelerations.
 
+- ``min_range_m``: a floor on the slant range. Inside it the GUIDED velocity gains a back-off along
+  the line of sight (``backoff_gain`` m/s per metre inside) and a climb, so a target that stops or
+  turns back at the chaser is not overrun into the camera's blind zone; a target's velocity fed
+  forward cannot carry the chaser closer than the floor.
+
 - ``range_smoothing_s``: lean on what the camera measures well. A camera estimate
   (:class:`~chaser_bt.cue.TargetEstimate`) has an accurate bearing and a poor range (box size;
   the paper's section 5: "too variable to use with the relative position controller, even with
@@ -85,6 +90,8 @@ class FollowConfig:
     guided_speed_max: float = 20.0  # m/s
     range_smoothing_s: float = 0.0  # > 0: camera estimates keep their bearing, range low-passed (see module doc)
     max_lean_rad: float | None = None  # lean limit below the vehicle's ANGLE_MAX (keeps a fixed camera's view)
+    min_range_m: float = 0.0  # > 0: closer than this (slant), GUIDED backs off along the line of sight
+    backoff_gain: float = 1.0  # 1/s: m/s of back-off per metre inside min_range_m
 
     def __post_init__(self) -> None:
         if not self.slant_range_m > 0.0:
@@ -97,6 +104,9 @@ class FollowConfig:
             raise ValueError(f"max_lean_rad must be in (0, 90) deg, got {self.max_lean_rad}")
         if not self.range_smoothing_s >= 0.0:
             raise ValueError(f"range_smoothing_s must be >= 0, got {self.range_smoothing_s}")
+        if not (self.min_range_m >= 0.0 and self.backoff_gain >= 0.0) or self.min_range_m >= self.slant_range_m:
+            raise ValueError(f"min_range_m must be in [0, slant_range_m) and backoff_gain >= 0, got "
+                             f"{self.min_range_m}, {self.backoff_gain}")
 
     @property
     def ground_range_sp(self) -> float:
@@ -357,6 +367,10 @@ class FollowController:
         los = d / gr if gr > 1e-6 else np.array([math.cos(yaw), math.sin(yaw)])
         err = (gr - c.ground_range_sp) * los
         v = vt[:2] + c.guided_position_gain * err
+        slant = float(np.linalg.norm(cue.position_enu - pos))
+        if c.min_range_m > 0.0 and slant < c.min_range_m:  # too close: back off along the line of sight, and up
+            v = v - c.backoff_gain * (c.min_range_m - slant) * los
+            climb = max(climb, c.backoff_gain * (c.min_range_m - slant) * math.sin(c.elevation_rad))
         speed = float(np.linalg.norm(v))
         if speed > c.guided_speed_max:
             v *= c.guided_speed_max / speed

@@ -105,6 +105,24 @@ def test_guided_velocity_points_at_the_set_point():
     assert cmd.velocity_enu[1] > 10.0 and abs(cmd.velocity_enu[0]) < 1e-9
 
 
+def test_inside_the_minimum_range_guided_backs_off_and_climbs():
+    """Set-point 24 m at 20 deg (ground 22.55 m); a hovering target 6 m north and 2 m below. The range
+    term alone backs off at 0.5 x (6 - 22.55) = -8.27 m/s north; with min_range 12 m the back-off adds
+    1 x (12 - 6.32) m/s more, and the climb is at least 5.68 x sin(20 deg) = 1.94 m/s."""
+    target, own = [0.0, 6.0, 28.0], np.array([0.0, 0.0, 30.0])
+    c = dict(slant_range_m=24.0, elevation_rad=math.radians(20.0))
+    plain = FollowController(FollowConfig(**c)).update(0.0, own, np.zeros(3), math.radians(90), cue(0.0, target))
+    floor = FollowController(FollowConfig(**c, min_range_m=12.0)).update(0.0, own, np.zeros(3), math.radians(90),
+                                                                         cue(0.0, target))
+    slant = math.hypot(6.0, 2.0)
+    ground_sp = 24.0 * math.cos(math.radians(20.0))
+    assert plain.velocity_enu[1] == pytest.approx(0.5 * (6.0 - ground_sp), abs=1e-6)
+    assert floor.velocity_enu[1] == pytest.approx(plain.velocity_enu[1] - (12.0 - slant), abs=1e-6)
+    assert floor.velocity_enu[2] >= (12.0 - slant) * math.sin(math.radians(20.0)) - 1e-9
+    with pytest.raises(ValueError, match="min_range_m"):
+        FollowConfig(slant_range_m=24.0, min_range_m=30.0)
+
+
 @pytest.mark.parametrize("use_roll, az_tol_deg", [(False, 5.0), (True, 0.5)])
 def test_closed_loop_on_a_point_mass_reaches_the_set_point(use_roll, az_tol_deg):
     """Independent plant: ALT_HOLD as ideal lean -> acceleration, climb rate and yaw rate (no autopilot).
