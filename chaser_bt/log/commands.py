@@ -1,15 +1,17 @@
-"""``chaser-bt replay LOG TREE`` and ``chaser-bt plot LOG``; the ``--record`` / ``--live`` flags of run and rehearse.
+"""``chaser-bt replay LOG TREE``, ``plot LOG``, ``btlog LOG TREE``; the ``--record`` / ``--live`` / ``--btlog`` flags of run and rehearse.
 
 ``replay`` ticks a tree on a recorded flight (docs/logs.md) and prints its status changes, the
 radar correlator's associations and the target cues and estimates the tree wrote, each compared with
 the recording; ``--json`` prints one object. With ``--check`` it exits 1 unless all three are exactly
 as recorded. ``plot`` draws the paper's figures
-from a log into PNG files. Bad input (no such file, not a log, an invalid tree) exits 2.
+from a log into PNG files. ``btlog`` writes a log as a Groot2 log (``.btlog``, BT.CPP's FileLogger2) by
+replaying it; it exits 1 if the replay's status changes are not the recorded ones. Bad input (no such
+file, not a log, an invalid tree) exits 2.
 
 The lead wires recording into ``run`` and ``rehearse`` with :func:`add_recording_arguments` and
 :class:`RecordingHook`::
 
-    hook = RecordingHook.from_args(args)          # None without --record / --live; RecordingError: exit 2
+    hook = RecordingHook.from_args(args)          # None without --record / --live / --btlog; RecordingError: exit 2
     # run:      runner.setup(); hook(runner, link, runner.resources) ... finally: hook.close()
     # rehearse: rehearse(..., on_start=hook)      ... finally: hook.close()
 """
@@ -24,7 +26,8 @@ from typing import Any, Mapping
 
 from chaser_bt.cli_args import listen_port, output_dir, output_file
 
-__all__ = ["add_command", "add_recording_arguments", "RecordingError", "RecordingHook", "run_replay", "run_plot"]
+__all__ = ["add_command", "add_recording_arguments", "RecordingError", "RecordingHook", "run_replay", "run_plot",
+           "run_btlog"]
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 DEFAULT_PORT = 8765  # chaser_bt.log.live.DEFAULT_PORT, kept here so that every CLI start need not load foxglove
@@ -52,9 +55,25 @@ def add_command(subparsers) -> None:
     p.add_argument("--out", type=output_dir, metavar="DIR", help="folder for the PNGs (default: LOG without .mcap, plus _plots)")
     p.set_defaults(handler=run_plot)
 
+    p = subparsers.add_parser("btlog", help="write a recorded flight (MCAP) as a Groot2 log (.btlog) by replaying it",
+                              description="Replay a recorded flight through its tree and write every status transition "
+                                          "as BT.CPP's FileLogger2 does (.btlog: Groot2's log player opens it).")
+    p.add_argument("log", type=Path, help="flight log (.mcap) written with --record")
+    p.add_argument("tree", type=Path, help="the tree that flew it")
+    p.add_argument("-o", "--out", type=_btlog_file, metavar="FILE.btlog", help="the Groot2 log (default: LOG with .btlog)")
+    p.set_defaults(handler=run_btlog)
+
+
+def _btlog_file(text: str) -> Path:
+    """A ``.btlog`` file to write (Groot2 and BT.CPP's FileLogger2 open no other suffix)."""
+    path = output_file(text)
+    if path.suffix != ".btlog":
+        raise argparse.ArgumentTypeError(f"{path}: a Groot2 log must end in .btlog (Groot2 opens no other)")
+    return path
+
 
 def add_recording_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--record FILE.mcap``, ``--record-frames``, ``--live [PORT]`` for ``run`` and ``rehearse``."""
+    """``--record FILE.mcap``, ``--record-frames``, ``--live [PORT]``, ``--btlog FILE.btlog`` for ``run`` and ``rehearse``."""
     parser.add_argument("--record", type=output_file, metavar="FILE.mcap",
                         help="record the flight to an MCAP file (opens in Foxglove; `chaser-bt replay`, `chaser-bt plot`; "
                              "default: no recording)")
@@ -64,6 +83,9 @@ def add_recording_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--live", type=listen_port, nargs="?", const=DEFAULT_PORT, metavar="PORT",
                         help=f"serve the flight live to Foxglove on ws://127.0.0.1:PORT (PORT default {DEFAULT_PORT}, 0: any free one; "
                              "default: no live view)")
+    parser.add_argument("--btlog", type=_btlog_file, metavar="FILE.btlog",
+                        help="write every status transition of the tree as BT.CPP's FileLogger2 does: the flight opens "
+                             "in Groot2's log player (default: none)")
 
 
 class RecordingError(ValueError):
@@ -71,13 +93,15 @@ class RecordingError(ValueError):
 
 
 class RecordingHook:
-    """Attaches a recorder (file and/or live view) when called with ``(runner, link or vehicle, resources)``.
+    """Attaches a recorder (file and/or live view) and a Groot2 log writer (``--btlog``) when called with
+    ``(runner, link or vehicle, resources)``.
 
     The call signature is the rehearsal's ``on_start``; ``chaser-bt run`` calls it after
     ``runner.setup()``. :meth:`close` (always, in a ``finally``) finishes the file and stops the server.
     """
 
-    def __init__(self, record: Path | None, live_port: int | None, frame_format: str = "jpeg") -> None:
+    def __init__(self, record: Path | None, live_port: int | None, frame_format: str = "jpeg",
+                 btlog: Path | None = None) -> None:
         """Checks the file's folder and starts the live server at once, so a mistake stops the command
         before it connects to a vehicle.
 
@@ -89,8 +113,10 @@ class RecordingHook:
         self.record, self.live_port, self.frame_format = record, live_port, frame_format
         self.recorder = None
         self.live = None
-        if record is not None and not Path(record).parent.is_dir():
-            raise RecordingError(f"--record {record}: no such folder {Path(record).parent}")
+        self.btlog, self.btlog_writer = btlog, None
+        for flag, path in (("--record", record), ("--btlog", btlog)):
+            if path is not None and not Path(path).parent.is_dir():
+                raise RecordingError(f"{flag} {path}: no such folder {Path(path).parent}")
         if live_port is not None:
             try:
                 self.live = LiveSink(live_port)
@@ -100,12 +126,18 @@ class RecordingHook:
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> RecordingHook | None:
-        record, live = getattr(args, "record", None), getattr(args, "live", None)
-        if record is None and live is None:
+        record, live, btlog = getattr(args, "record", None), getattr(args, "live", None), getattr(args, "btlog", None)
+        if record is None and live is None and btlog is None:
             return None
-        return cls(record, live, getattr(args, "record_frames", "jpeg"))
+        return cls(record, live, getattr(args, "record_frames", "jpeg"), btlog)
 
     def __call__(self, runner: Any, link_or_vehicle: Any, resources: Mapping[str, Any] | None = None) -> None:
+        if self.btlog is not None:
+            from chaser_bt.log.groot2.btlog import BtlogWriter
+
+            self.btlog_writer = BtlogWriter(runner.tree, self.btlog).attach(runner)
+        if self.record is None and self.live is None:
+            return
         from chaser_bt.log.recorder import attach_recorder
 
         link = getattr(link_or_vehicle, "link", link_or_vehicle)
@@ -116,10 +148,14 @@ class RecordingHook:
         )
 
     def close(self) -> None:
-        if self.recorder is not None:
-            self.recorder.close()
-        elif self.live is not None:
-            self.live.close()
+        try:
+            if self.btlog_writer is not None:
+                self.btlog_writer.close()
+        finally:
+            if self.recorder is not None:
+                self.recorder.close()
+            elif self.live is not None:
+                self.live.close()
 
 
 def run_replay(args: argparse.Namespace) -> int:
@@ -235,4 +271,27 @@ def run_plot(args: argparse.Namespace) -> int:
         save_figure(plot_belief_snapshots(trace, title=title), written[-1])
     for path in written:
         print(path)
+    return EXIT_OK
+
+
+def run_btlog(args: argparse.Namespace) -> int:
+    from chaser_bt.log.groot2.btlog import convert_flight
+    from chaser_bt.log.replay import LogError, read_log
+    from chaser_bt.tree import TreeError, load_tree
+
+    out = args.out or args.log.with_suffix(".btlog")
+    try:
+        conversion = convert_flight(read_log(args.log), load_tree(args.tree), out)
+    except (LogError, TreeError) as exc:
+        print(f"chaser-bt: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except OSError as exc:
+        print(f"chaser-bt: {exc.filename or args.tree}: {exc.strerror or exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    print(f"{out}: {conversion.ticks} ticks, {conversion.transitions} transitions, ended: {conversion.ended} "
+          "(open it in Groot2: Log Replay)")
+    if not conversion.as_recorded:
+        print(f"chaser-bt: btlog: the replayed tree's status changes differ from {args.log}'s (`chaser-bt replay` shows "
+              "where): the file is the replay's, not the recorded flight's", file=sys.stderr)
+        return EXIT_FAILED
     return EXIT_OK
