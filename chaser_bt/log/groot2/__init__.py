@@ -1,4 +1,5 @@
-"""Groot2's live monitor (BehaviorTree.CPP's Groot2 publisher protocol): Groot2 attaches to a running tree.
+"""Groot2's live monitor (BehaviorTree.CPP's Groot2 publisher protocol): Groot2 attaches to a running tree;
+and flights Groot2's log player opens (:mod:`~chaser_bt.log.groot2.btlog`, BT.CPP's FileLogger2 format).
 
 :mod:`~chaser_bt.log.groot2.protocol` is the wire format, :mod:`~chaser_bt.log.groot2.tree_xml`
 numbers the nodes and writes the tree as BT.CPP does, :mod:`~chaser_bt.log.groot2.statuses`
