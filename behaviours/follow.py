@@ -56,6 +56,7 @@ class TargetTelemetryCue(VehicleBehaviour):
     """
 
     NODE_KIND = NodeKind.ACTION
+    USES_RESOURCES = ("target_telemetry",)  # else it listens on the link itself
     INPUT_PORTS = {
         "sysid": input_port(int, "Target's MAVLink system id (0 = whichever foreign system spoke last)", default=0, minimum=0, maximum=255),
         "max_age_s": input_port(float, "A position older than this is no cue (s)", default=2.0, minimum=0),

@@ -41,6 +41,7 @@ class StreamToGround(VehicleBehaviour):
     """Send status, estimate, tracks and video to ``host:port`` over UDP; always RUNNING."""
 
     NODE_KIND = NodeKind.ACTION
+    USES_RESOURCES = ("camera", "radar")  # the video and the tracks, when the flight has them
     INPUT_PORTS = {
         "host": input_port(str, "Ground station address", default="127.0.0.1"),
         "port": input_port(int, "Ground station UDP port", default=14600, minimum=1, maximum=65535),
@@ -162,6 +163,7 @@ class GroundDesignation(VehicleBehaviour):
     """
 
     NODE_KIND = NodeKind.ACTION
+    USES_RESOURCES = ("uplink",)  # off without it
     INPUT_PORTS = {"state": state_port()}
     OUTPUT_PORTS = {"operator_track": output_port(int, "The track id the operator designated",
                                                   default_key=OPERATOR_CONFIRMATION_KEY)}

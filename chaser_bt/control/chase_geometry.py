@@ -146,22 +146,24 @@ def trade_off_figure(inputs: ChaseInputs = ChaseInputs(), path: str | None = Non
     for e in (20, 30, 40, 50, 60):
         ax[0].plot(ranges, pixels_on_target(inputs, ranges, math.radians(e)), label=f"{e} deg")
     ax[0].axhline(inputs.min_pixels, color="k", ls="--", lw=1, label=f"required {inputs.min_pixels:g} px")
-    ax[0].set(xlabel="slant range (m)", ylabel="pixels on target sqrt(w h)", title="Pixels on target", ylim=(0, 40))
+    ax[0].set(xlabel="slant range (m)", ylabel="pixels on target, sqrt(w h) (px)", title="Pixels on target", ylim=(0, 40))
     for rr in (30, 40, 50):
         ax[1].plot(np.degrees(els), time_to_horizon(inputs, rr, els), label=f"{rr} m")
         ax[2].plot(np.degrees(els), time_to_leave_vertical_fov(inputs, rr, els), label=f"{rr} m")
     a = math.degrees(0.5 * inputs.vfov_rad)
     ax[1].axvspan(0, a, color="0.85", label="horizon in frame")
-    ax[1].set(xlabel="elevation (deg)", ylabel="s", title=f"Climb at {inputs.speed_up_mps:g} m/s: time to horizon")
+    ax[1].set(xlabel="elevation below the chaser (deg)", ylabel="time until the target is at the horizon (s)",
+              title=f"Climb at {inputs.speed_up_mps:g} m/s: time to horizon")
     ax[2].axvspan(90 - a, 90, color="0.85", label="camera sees behind")
-    ax[2].set(xlabel="elevation (deg)", ylabel="s", ylim=(0, 4),
+    ax[2].set(xlabel="elevation below the chaser (deg)", ylabel="time until the target leaves the FOV (s)", ylim=(0, 4),
               title=f"Dash at {inputs.speed_h_mps:g} m/s: time to leave vertical FOV")
-    for k in (1, 2):
-        ax[k].axvline(math.degrees(rec.elevation_rad), color="r", ls=":", lw=1.5)
     ax[0].axvline(rec.slant_range_m, color="r", ls=":", lw=1.5,
                   label=f"choice {rec.slant_range_m:g} m, {math.degrees(rec.elevation_rad):g} deg")
-    for k in range(3):
-        ax[k].legend(fontsize=8)
+    for k in (1, 2):
+        ax[k].axvline(math.degrees(rec.elevation_rad), color="r", ls=":", lw=1.5,
+                      label=f"choice {math.degrees(rec.elevation_rad):g} deg")
+    for k, heading in enumerate(("elevation below the chaser", "slant range", "slant range")):
+        ax[k].legend(fontsize=8, title=heading, title_fontsize=8)
         ax[k].grid(alpha=0.3)
     fig.tight_layout()
     if path is not None:

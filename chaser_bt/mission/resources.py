@@ -3,7 +3,9 @@
 A leaf that cannot work without a resource beside ``link`` and ``clock`` (the ground radar's feed,
 the camera) names it in its class attribute ``REQUIRES_RESOURCES``. Reading those before the flight
 lets ``chaser-bt run`` refuse a chase tree given no ``--radar`` with a sentence naming the flag,
-instead of a ``KeyError`` from a leaf's ``setup()`` after the link is up.
+instead of a ``KeyError`` from a leaf's ``setup()`` after the link is up. A leaf that uses one when
+it is there and works without it (the target's telemetry, the ground uplink, what the ground stream
+sends) names it in ``USES_RESOURCES``: a report then says which sensors the flight actually used.
 """
 
 from __future__ import annotations
@@ -12,9 +14,10 @@ from typing import Iterable
 
 import py_trees
 
-__all__ = ["MissingResources", "missing_resources", "required_resources"]
+__all__ = ["MissingResources", "missing_resources", "required_resources", "used_resources"]
 
 REQUIRES_ATTRIBUTE = "REQUIRES_RESOURCES"
+USES_ATTRIBUTE = "USES_RESOURCES"
 
 
 class MissingResources(ValueError):
@@ -34,6 +37,12 @@ def required_resources(root: py_trees.behaviour.Behaviour) -> dict[str, list[str
             if node.name not in names:
                 names.append(node.name)
     return needs
+
+
+def used_resources(root: py_trees.behaviour.Behaviour) -> set[str]:
+    """Every resource a leaf under ``root`` requires or uses when given."""
+    return {r for node in root.iterate() for attr in (REQUIRES_ATTRIBUTE, USES_ATTRIBUTE)
+            for r in getattr(type(node), attr, ())}
 
 
 def missing_resources(

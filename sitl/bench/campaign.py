@@ -759,14 +759,19 @@ def false_success(row: Mapping[str, Any]) -> bool:
 
 
 def _load_traces(out_dir: Path, rows: Sequence[Mapping[str, Any]]) -> list[FlightTrace]:
-    traces = []
+    return [t for t, _ in _traces_with_rows(out_dir, rows)]
+
+
+def _traces_with_rows(out_dir: Path, rows: Sequence[Mapping[str, Any]]) -> list[tuple[FlightTrace, Mapping[str, Any]]]:
+    """The readable stored traces, each with its run's row (for the figures: which run to highlight)."""
+    pairs = []
     for r in rows:
         if r.get("trace_file"):
             try:
-                traces.append(FlightTrace.load(out_dir / r["trace_file"]))
+                pairs.append((FlightTrace.load(out_dir / r["trace_file"]), r))
             except (OSError, ValueError, KeyError) as exc:
                 log.warning("%s: cannot read its trace: %s", r.get("key"), exc)
-    return traces
+    return pairs
 
 
 def write_campaign_report(config: CampaignConfig, rows: Sequence[dict], aggregates: Mapping[str, Any]) -> dict[str, Path]:
@@ -785,18 +790,47 @@ def write_campaign_report(config: CampaignConfig, rows: Sequence[dict], aggregat
     figures.save_figure(figures.plot_metric_cdfs(rows, title=f"{config.tree.name}: {len(rows)} runs"), out / "cdfs.png")
     files["cdfs"] = out / "cdfs.png"
     images.append(("Distributions over the runs, the paper's values dashed", "cdfs.png"))
-    traces = _load_traces(out, rows)
+    pairs = _traces_with_rows(out, rows)
+    traces = [t for t, _ in pairs]
     if traces:
+        # One run drawn strong, the others grey: the median run by acquisition time (else by length).
+        pick = figures.select_run([r.get("t_acquire_s") for _, r in pairs])
+        why = "median acquisition time"
+        if pick is None:
+            pick, why = figures.select_run([r.get("sim_time_s") for _, r in pairs]), "median flight time"
+        pick = 0 if pick is None else pick
+        name = figures.run_label(traces[pick], str(pairs[pick][1].get("key", "")))
         files["overhead"] = out / "overhead.png"
-        figures.save_figure(figures.plot_overhead(traces, title=f"{config.tree.name}: overhead tracks of {len(traces)} runs"), files["overhead"])
-        images.append(("Overhead tracks of every run", "overhead.png"))
+        figures.save_figure(figures.plot_overhead(
+            traces, highlight=pick, highlight_why=why,
+            title=f"{config.tree.name}: overhead tracks of {len(traces)} runs\nrun {name} ({why}) in colour, the others grey"),
+            files["overhead"])
+        images.append((f"Overhead track of run {name} ({why}) by mission phase, the other runs grey", "overhead.png"))
+        failed = next((k for k, (_, r) in enumerate(pairs) if not r.get("success")), None)
+        if failed is not None and len(traces) > 1:
+            bad = pairs[failed][1]
+            fname = figures.run_label(traces[failed], str(bad.get("key", "")))
+            files["overhead_failed"] = out / "overhead_failed.png"
+            figures.save_figure(figures.plot_overhead(
+                traces, highlight=failed, highlight_why=f"did not succeed: {bad.get('outcome')}",
+                title=f"{config.tree.name}: overhead tracks of {len(traces)} runs\nrun {fname} (did not succeed: {bad.get('outcome')}) in colour, the others grey"),
+                files["overhead_failed"])
+            images.append((f"Overhead track of run {fname}, the first that did not succeed ({bad.get('outcome')})", "overhead_failed.png"))
         aligned = "acquired" if any(t.first_event("acquired") for t in traces) else None
-        have_target = [t for t in traces if np.isfinite(t.target_enu).any()]
+        have_target = [k for k, t in enumerate(traces) if np.isfinite(t.target_enu).any()]
         if have_target:
             files["geometry"] = out / "relative_geometry.png"
-            figures.save_figure(figures.plot_relative_geometry(have_target, align_event=aligned), files["geometry"])
-            images.append(("Relative azimuth, elevation and range against the desired (paper figures 7 and 9)"
-                           + (", time from acquisition" if aligned else ""), "relative_geometry.png"))
+            sub = [traces[k] for k in have_target]
+            if aligned and pick in have_target and traces[pick].first_event(aligned) is None:
+                pick_sub = None  # the median run never acquired: the plot picks one that did
+            else:
+                pick_sub = have_target.index(pick) if pick in have_target else None
+            figures.save_figure(figures.plot_relative_geometry(
+                sub, align_event=aligned, highlight=pick_sub, highlight_why=why if pick_sub is not None else "",
+                title=f"{config.tree.name}: target relative to the ownship, {len(sub)} runs"), files["geometry"])
+            images.append(("Relative azimuth, elevation and range against the desired and the paper's follow geometry "
+                           "(paper figures 7 and 9)" + (", time from acquisition" if aligned else "")
+                           + "; one run strong, the others' median and middle half", "relative_geometry.png"))
         with_belief = next((t for t in traces if t.beliefs), None)
         if with_belief is not None:
             files["belief"] = out / "belief.png"

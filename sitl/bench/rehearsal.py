@@ -27,7 +27,7 @@ import py_trees
 
 from chaser_bt.cli_args import AUTOPILOTS
 from chaser_bt.log.trace import FlightTrace, TraceEvent
-from chaser_bt.mission.resources import required_resources
+from chaser_bt.mission.resources import required_resources, used_resources
 from chaser_bt.mission.retask import RetaskRequest
 from chaser_bt.mission.runner import MissionRunner, RunStatus, StatusChange
 from chaser_bt.tree import MissionTree, load_tree, reset_blackboard
@@ -93,7 +93,7 @@ class RehearsalReport:
     followed_s_by_object: dict[str, float] | None = None  # seconds each object was followed
     designated_object: str | None = None  # the object the mission designated (truth: its radar track's)
     retasks: list[dict] | None = None  # every retask offered (chaser_bt.mission.retask.Retask.as_dict), taken or not
-    sensors: list[str] = field(default_factory=list)  # the sensors the tree uses (of those the rehearsal provides)
+    sensors: list[str] = field(default_factory=list)  # the sensors the tree requires or uses (of those the rehearsal provides)
     radar_pose: str | None = None  # calibrated | surveyed
     radar_pose_err_m: float | None = None  # mission's radar position minus the truth
     radar_yaw_err_deg: float | None = None
@@ -308,7 +308,7 @@ def rehearse(
         t_safe_s=_rounded(safety.time_to_safe(_first_fault_s(scenario))),
         **observer.report_keys(),
         **sar.report_keys(),
-        sensors=sorted(set(mission_sensors.resources) & set(required_resources(tree.root))),
+        sensors=sorted(set(mission_sensors.resources) & used_resources(tree.root)),
         radar_pose=None if mission_sensors.radar_pose is None else mission_sensors.radar_pose.method,
         radar_pose_err_m=pose_err[0],
         radar_yaw_err_deg=pose_err[1],

@@ -3,19 +3,24 @@
 ``write_rehearsal_report(report, out_dir)`` is what ``make demo`` and ``chaser-bt rehearse --report
 DIR`` call after a rehearsal: the DESIGN §7 keys beside the paper's values (section 4), and, when the
 rehearsal kept a :class:`~chaser_bt.log.trace.FlightTrace`, ``trace.npz`` plus PNGs drawn by
-:mod:`chaser_bt.log.figures` (overhead track, relative geometry as in figures 7 and 9, belief maps).
+:mod:`chaser_bt.log.figures` (overhead track, relative geometry as in figures 7 and 9, belief maps)
+and, where the trace kept camera frames, ``rehearsal.gif`` (:mod:`chaser_bt.log.animation`: the
+camera with the detector's box beside the overhead track, around the acquisition).
 The campaign report (:mod:`sitl.bench.campaign`) shares the table helpers here.
 """
 
 from __future__ import annotations
 
 import json
+import logging
 import math
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from chaser_bt.log.figures import PAPER_VALUES
 from chaser_bt.log.trace import FlightTrace
+
+log = logging.getLogger(__name__)
 
 __all__ = ["DESIGN_KEYS", "LOWER_IS_BETTER", "format_value", "markdown_table", "write_rehearsal_report", "write_json"]
 
@@ -84,7 +89,8 @@ def write_rehearsal_report(report: Any, out_dir: str | Path, trace: FlightTrace 
         trace: the flight's trace; defaults to ``report.trace`` when the report carries one.
 
     Returns:
-        The written files by kind (``json``, ``markdown``, ``trace``, ``overhead``, ``geometry``, ``belief``).
+        The written files by kind (``json``, ``markdown``, ``trace``, ``overhead``, ``geometry``, ``belief``,
+        ``animation``: ``rehearsal.gif``, where the trace kept camera frames).
     """
     from chaser_bt.log import figures
 
@@ -105,11 +111,23 @@ def write_rehearsal_report(report: Any, out_dir: str | Path, trace: FlightTrace 
         images.append(("Overhead track (phases coloured, events marked)", "overhead.png"))
         written["geometry"] = out / "relative_geometry.png"
         figures.save_figure(figures.plot_relative_geometry([trace], title=f"target relative to the ownship: {label}"), written["geometry"])
-        images.append(("Relative azimuth, elevation and range against the desired (paper figures 7 and 9)", "relative_geometry.png"))
+        images.append(("Relative azimuth, elevation and range against the desired and the paper's follow geometry "
+                       "(paper figures 7 and 9), with the phases, target-in-FOV and detection intervals", "relative_geometry.png"))
         if trace.beliefs:
             written["belief"] = out / "belief.png"
             figures.save_figure(figures.plot_belief_snapshots(trace, title=f"search belief: {label}"), written["belief"])
             images.append(("Search belief snapshots", "belief.png"))
+        if trace.frames:
+            from chaser_bt.log.animation import write_animation
+
+            try:
+                written["animation"] = write_animation(trace, out / "rehearsal.gif", title=label)
+            except Exception:  # the numbers and the still figures stand without it
+                log.exception("could not write the rehearsal's animation")
+            else:
+                t0, t1 = trace.frames[0].t, trace.frames[-1].t
+                images.insert(0, (f"The camera with the detector's box beside the overhead track, mission time "
+                                  f"{t0:.1f}-{t1:.1f} s (animated)", "rehearsal.gif"))
     written["markdown"].write_text(_rehearsal_markdown(data, trace, images))
     return written
 

@@ -39,6 +39,7 @@ hand); :class:`RehearsalObserver` records them while a rehearsal flies and fills
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
@@ -48,6 +49,7 @@ import py_trees
 from scipy.spatial.transform import Rotation
 
 from chaser_bt.geo import heading_to_enu_yaw
+from chaser_bt.log.animation import FrameKeeper
 from chaser_bt.log.trace import BeliefSnapshot, FlightTrace, TraceEvent
 from chaser_bt.mission.outcome import PHASE_KEY
 from chaser_bt.radar.correlator import Association, TrackCorrelator, TrackPoints
@@ -422,6 +424,8 @@ class RehearsalObserver:
         self._validated_seen = self._alt_seen = False
         self._next_belief_t = -math.inf
         self._last_belief_t: float | None = None
+        # With a trace: a few camera frames around the acquisition, for the animated report (chaser_bt.log.animation).
+        self.frames: FrameKeeper | None = FrameKeeper() if trace and self.has_camera else None
 
     def _radar_truth(self, datagram: bytes) -> None:
         truth = self.sim.radar_truth
@@ -531,6 +535,13 @@ class RehearsalObserver:
         track = cam.pipeline.track
         truth_boxes = [lab.box for lab in self.sensors.frame_source.last_labels if lab.index == self._designated]
         rec.frame_matched = bool(track is not None and truth_boxes and box_matches(track.box, truth_boxes[0]))
+        if self.frames is not None:
+            try:
+                self.frames.offer(float(frame.t), frame.image, None if track is None else track.box,
+                                  truth_boxes[0] if truth_boxes else None, acquired=bool(rec.acquired))
+            except Exception:  # the pictures never cost the flight
+                logging.getLogger(__name__).exception("could not keep a camera frame; keeping none")
+                self.frames = None
 
     def _radar_state(self, rec: TickRecord, own: np.ndarray, airborne: bool) -> None:
         radar = self.sim.radar
@@ -617,5 +628,5 @@ class RehearsalObserver:
             tip=c.tip, events=list(self.events), beliefs=list(self.beliefs), target_source="truth",
             desired_range_m=float(rng) if rng is not None else math.nan,
             desired_elevation_rad=math.radians(float(elev)) if elev is not None else math.nan,
-            meta={**meta, "ownship_source": "truth"},
+            meta={**meta, "ownship_source": "truth"}, frames=[] if self.frames is None else self.frames.snapshots(),
         )

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from matplotlib.legend import Legend
 
 from chaser_bt.log.figures import (
     PAPER_VALUES,
@@ -62,10 +63,14 @@ def test_overhead_draws_each_phase_segment_joined_to_the_next_and_the_target():
     assert sorted(t.get_text() for t in ax.texts) == ["acquired", "airborne"]  # named for a single trace
 
 
-def test_overhead_of_many_traces_draws_every_one_without_names():
-    fig = plot_overhead([_square_trace(), _square_trace()])
-    assert {"target/0", "target/1"} <= set(_lines(fig, "target/"))
-    assert not fig.axes[0].texts
+def test_overhead_of_many_traces_draws_one_in_phases_and_the_others_grey():
+    fig = plot_overhead([_square_trace(), _square_trace(), _square_trace()], highlight=2)
+    assert set(_lines(fig, "target/")) == {"target/2"}  # the highlighted run's target only
+    others = _lines(fig, "ownship/")
+    assert {"ownship/0/other", "ownship/1/other", "ownship/2/climb", "ownship/2/cue"} == set(others)
+    np.testing.assert_array_equal(np.column_stack(others["ownship/0/other"].get_data()), _square_trace().ownship_enu[:, :2])
+    assert set(_lines(fig, "event/")) == {"event/2/airborne", "event/2/acquired"}  # only its events, named
+    assert sorted(t.get_text() for t in fig.axes[0].texts) == ["acquired", "airborne"]
 
 
 def test_relative_geometry_matches_hand_worked_angles_and_ranges():
@@ -122,8 +127,8 @@ def test_cdfs_step_through_each_value_and_mark_the_paper():
     np.testing.assert_allclose(cdf.get_xdata(), [1.0, 1.0, 2.0, 3.0])
     np.testing.assert_allclose(cdf.get_ydata(), [0.0, 1 / 3, 2 / 3, 1.0])
     assert lines["paper/t_acquire_s"].get_xdata()[0] == PAPER_VALUES["t_acquire_s"] == 4.95
-    assert "cdf/detection_frac" not in lines  # no run has it: the panel says so
-    assert lines["paper/detection_frac"].get_xdata()[0] == 0.66
+    assert "cdf/detection_frac" not in lines and "paper/detection_frac" not in lines  # no run has it: no panel
+    assert fig.get_suptitle().endswith("no data (no run has a value): detection_frac")  # ... and the figure says so
 
 
 def test_save_figure_writes_a_png(tmp_path):
@@ -154,8 +159,9 @@ def test_overhead_renders_with_labelled_axes_and_one_label_per_place(tmp_path):
 def test_overhead_legend_names_only_the_phases_drawn():
     tr = _square_trace()
     tr.phase[-1] = "land"  # one sample at the end: nothing to draw
-    legend = [t.get_text() for t in plot_overhead([tr]).axes[0].get_legend().get_texts()]
-    assert "land" not in legend and "cue" in legend and "events" in legend
+    legends = {lg.get_title().get_text(): [t.get_text() for t in lg.get_texts()] for lg in plot_overhead([tr]).findobj(Legend)}
+    assert legends["mission phase"] == ["climb", "cue"]
+    assert "events (named)" in legends["also drawn"] and "home" in legends["also drawn"]
 
 
 def test_relative_geometry_renders_labelled_and_names_the_target_source(tmp_path):
@@ -163,8 +169,8 @@ def test_relative_geometry_renders_labelled_and_names_the_target_source(tmp_path
     tr.target_source = "telemetry"
     fig = plot_relative_geometry([tr])
     _axes_are_labelled(fig)
-    legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
-    assert "from the intruder's telemetry" in legend and "true" not in legend
+    legend = next(lg for lg in fig.findobj(Legend) if lg.get_title().get_text() == "run")
+    assert [t.get_text() for t in legend.get_texts()] == ["run the run: from the intruder's telemetry position"]
     save_figure(fig, tmp_path / "g.png")
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from chaser_bt.mission.flight_sensors import FlightSensorError, FlightSensorOptions, check_sensors
-from chaser_bt.mission.resources import MissingResources, missing_resources, required_resources
+from chaser_bt.mission.resources import MissingResources, missing_resources, required_resources, used_resources
 from chaser_bt.mission.runner import MissionRunner
 from chaser_bt.tree import load_tree, load_tree_text
 
@@ -29,6 +29,14 @@ def test_the_shipped_trees_require_what_their_docs_say():
     chase = required_resources(load_tree(TREES / "chase.yaml").root)
     assert set(chase) == {"radar", "camera"}
     assert set(required_resources(load_tree(TREES / "sar.yaml").root)) == {"camera"}
+
+
+def test_used_resources_adds_what_a_leaf_takes_when_given():
+    """The chase requires radar and camera and takes the uplink; it never reads the target's
+    telemetry (the report's sensors leave it out); the telemetry variant does."""
+    assert used_resources(load_tree(TREES / "chase.yaml").root) == {"radar", "camera", "uplink"}
+    assert "target_telemetry" in used_resources(load_tree(TREES / "chase_telemetry.yaml").root)
+    assert used_resources(load_tree(TREES / "patrol.yaml").root) == set()
 
 
 def test_missing_resources_names_the_resource_its_nodes_and_how_to_give_it():
