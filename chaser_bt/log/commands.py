@@ -72,6 +72,15 @@ def _btlog_file(text: str) -> Path:
     return path
 
 
+def _bad_input(exc: Exception, tree: Any) -> int:
+    """One line for a log, tree or file that cannot be read; the bad-input exit code."""
+    if isinstance(exc, OSError):
+        print(f"chaser-bt: {exc.filename or tree}: {exc.strerror or exc}", file=sys.stderr)
+    else:
+        print(f"chaser-bt: {exc}", file=sys.stderr)
+    return EXIT_BAD_INPUT
+
+
 def add_recording_arguments(parser: argparse.ArgumentParser) -> None:
     """``--record FILE.mcap``, ``--record-frames``, ``--live [PORT]``, ``--btlog FILE.btlog`` for ``run`` and ``rehearse``."""
     parser.add_argument("--record", type=output_file, metavar="FILE.mcap",
@@ -180,12 +189,8 @@ def run_replay(args: argparse.Namespace) -> int:
         finally:
             for recorder in recorders:
                 recorder.close()
-    except (LogError, TreeError) as exc:
-        print(f"chaser-bt: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except OSError as exc:
-        print(f"chaser-bt: {exc.filename or args.tree}: {exc.strerror or exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+    except (LogError, TreeError, OSError) as exc:
+        return _bad_input(exc, args.tree)
     rec_changes, rec_assoc = recorded_status_changes(log), recorded_associations(log)
     same_changes = _first_difference(rec_changes, result.status_changes)
     same_assoc = _first_difference(rec_assoc, result.associations)
@@ -282,12 +287,8 @@ def run_btlog(args: argparse.Namespace) -> int:
     out = args.out or args.log.with_suffix(".btlog")
     try:
         conversion = convert_flight(read_log(args.log), load_tree(args.tree), out)
-    except (LogError, TreeError) as exc:
-        print(f"chaser-bt: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except OSError as exc:
-        print(f"chaser-bt: {exc.filename or args.tree}: {exc.strerror or exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+    except (LogError, TreeError, OSError) as exc:
+        return _bad_input(exc, args.tree)
     print(f"{out}: {conversion.ticks} ticks, {conversion.transitions} transitions, ended: {conversion.ended} "
           "(open it in Groot2: Log Replay)")
     if not conversion.as_recorded:

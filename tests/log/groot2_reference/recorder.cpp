@@ -19,6 +19,8 @@
 #include <zmq.hpp>
 #include <zmq_addon.hpp>
 
+#include "stand_ins.hpp"
+
 #include <fstream>
 #include <iostream>
 #include <string>
@@ -26,59 +28,8 @@
 
 namespace
 {
-class Countdown : public BT::StatefulActionNode
-{
-public:
-  Countdown(const std::string& name, const BT::NodeConfig& config)
-    : BT::StatefulActionNode(name, config)
-  {}
-
-  static BT::PortsList providedPorts()
-  {
-    return { BT::InputPort<int>("ticks", 2, "ticks to stay RUNNING") };
-  }
-
-  BT::NodeStatus onStart() override
-  {
-    remaining_ = getInput<int>("ticks").value();
-    return onRunning();
-  }
-
-  BT::NodeStatus onRunning() override
-  {
-    if(remaining_ == 0)
-    {
-      return BT::NodeStatus::SUCCESS;
-    }
-    remaining_--;
-    return BT::NodeStatus::RUNNING;
-  }
-
-  void onHalted() override
-  {}
-
-private:
-  int remaining_ = 0;
-};
-
-class Tally : public BT::SyncActionNode
-{
-public:
-  Tally(const std::string& name, const BT::NodeConfig& config) : BT::SyncActionNode(name, config)
-  {}
-
-  static BT::PortsList providedPorts()
-  {
-    return { BT::InputPort<int>("add", 1, "amount to add"),
-             BT::OutputPort<int>("total", "{tally}", "the amount, written") };
-  }
-
-  BT::NodeStatus tick() override
-  {
-    setOutput("total", getInput<int>("add").value());
-    return BT::NodeStatus::SUCCESS;
-  }
-};
+using stand_ins::Countdown;
+using stand_ins::Tally;
 
 std::string hex(const std::string& bytes)
 {
