@@ -47,6 +47,7 @@ class CustodyParams:
         floor_m: smallest position gate (calibration and GPS error, m).
         accel_mps2: the manoeuvre allowance: how hard the target may accelerate while unseen (m/s^2;
             a Phantom 4 in sport mode reaches 8).
+        max_speed_mps: nor faster than this (a Phantom 4 in sport mode: 20 m/s).
         vel_gate_mps: smallest velocity gate for a new track taking the target over (m/s).
         carrier_vel_gate_mps: smallest velocity gate for the carrying track's next report (m/s): the
             radar's tracker changes a track's velocity smoothly, so a jump means another object (a swap).
@@ -64,6 +65,7 @@ class CustodyParams:
     gate_sigma: float = 3.5
     floor_m: float = 8.0
     accel_mps2: float = 8.0
+    max_speed_mps: float = 20.0
     vel_gate_mps: float = 6.0
     carrier_vel_gate_mps: float = 2.0
     vel_lag_s: float = 1.0
@@ -76,7 +78,8 @@ class CustodyParams:
     confidence_tau_s: float = 4.0
 
     def __post_init__(self) -> None:
-        for name in ("gate_sigma", "floor_m", "vel_gate_mps", "max_gate_m", "apart_m", "max_coast_s", "confidence_tau_s"):
+        for name in ("gate_sigma", "floor_m", "vel_gate_mps", "max_gate_m", "apart_m", "max_coast_s", "confidence_tau_s",
+                     "max_speed_mps"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"CustodyParams.{name} must be positive")
         if self.accel_mps2 < 0 or self.vel_lag_s < 0 or self.misses_to_release < 1:
@@ -162,30 +165,57 @@ def designate(track: RadarTrack, t: float, by: str, previous: Custody | None = N
     return custody, CustodyEvent(t, kind, custody.target_id, track.track_id, reason)
 
 
+def _manoeuvre_m(c: Custody, dt: float, p: CustodyParams) -> float:
+    """How far from the prediction the target can be after ``dt`` unseen: accelerating at
+    ``accel_mps2`` away from its last velocity, never faster than ``max_speed_mps``."""
+    dv_max = p.max_speed_mps + float(np.linalg.norm(c.velocity_enu))  # turning about at full speed
+    t_sat = dv_max / p.accel_mps2 if p.accel_mps2 > 0 else math.inf
+    if dt <= t_sat:
+        return 0.5 * p.accel_mps2 * dt * dt
+    return 0.5 * p.accel_mps2 * t_sat * t_sat + dv_max * (dt - t_sat)
+
+
 def _position_gate(c: Custody, report: RadarTrack, p: CustodyParams) -> float:
-    """The radius around the prediction a report of the target may fall in."""
+    """The radius around the prediction a report of the target may fall in: ``gate_sigma`` of the
+    two reports' radar error, plus how far the target can have manoeuvred since."""
     dt = max(0.0, report.t - c.t_confirmed)
-    sigma = math.sqrt(float(np.trace(report.covariance_enu)) + float(np.trace(c.covariance_enu)) / 3.0
-                      + (0.5 * p.accel_mps2 * dt * dt) ** 2)
-    return min(p.max_gate_m, max(p.floor_m, p.gate_sigma * sigma))
+    sigma = math.sqrt(float(np.trace(report.covariance_enu)) + float(np.trace(c.covariance_enu)))
+    return min(p.max_gate_m, max(p.floor_m, p.gate_sigma * sigma) + _manoeuvre_m(c, dt, p))
 
 
-def _fit(c: Custody, report: RadarTrack, p: CustodyParams, carrier: bool = False) -> float | None:
-    """The report's normalised distance from the target's prediction, or None outside the gate
-    (``carrier``: the next report of the track that carries the target)."""
+@dataclass(frozen=True)
+class _Fit:
+    """How a report sits against the target's gate: position miss and gate, velocity miss and gate."""
+
+    miss_m: float
+    gate_m: float
+    dv_mps: float
+    vgate_mps: float
+
+    @property
+    def inside(self) -> bool:
+        return self.miss_m <= self.gate_m and self.dv_mps <= self.vgate_mps
+
+    @property
+    def cost(self) -> float:
+        return self.miss_m / self.gate_m + (self.dv_mps / self.vgate_mps if self.vgate_mps > 0 else 0.0)
+
+    def __str__(self) -> str:
+        return f"{self.miss_m:.0f} m of a {self.gate_m:.0f} m gate, {self.dv_mps:.1f} of {self.vgate_mps:.1f} m/s"
+
+
+def _fit(c: Custody, report: RadarTrack, p: CustodyParams, carrier: bool = False) -> _Fit:
+    """The report against the target's prediction (``carrier``: the next report of the track that
+    carries the target, whose velocity the radar's tracker only changes smoothly)."""
     dt = max(0.0, report.t - c.t_confirmed)
     miss = float(np.linalg.norm(report.position_enu - c.predicted(report.t)))
-    gate = _position_gate(c, report, p)
-    if miss > gate:
-        return None
+    dv, vgate = 0.0, math.inf
     if report.velocity_enu is not None:
         dv = float(np.linalg.norm(report.velocity_enu - c.velocity_enu))
+        reach = p.max_speed_mps + float(np.linalg.norm(c.velocity_enu))
         vgate = (p.carrier_vel_gate_mps + p.accel_mps2 * dt if carrier
-                 else p.vel_gate_mps + p.accel_mps2 * (dt + p.vel_lag_s))
-        if dv > vgate:
-            return None
-        return miss / gate + dv / vgate
-    return miss / gate
+                 else p.vel_gate_mps + min(reach, p.accel_mps2 * (dt + p.vel_lag_s)))
+    return _Fit(miss, _position_gate(c, report, p), dv, vgate)
 
 
 def _confirm(c: Custody, report: RadarTrack) -> Custody:
@@ -206,11 +236,13 @@ def track_custody(c: Custody, picture: RadarPicture, params: CustodyParams | Non
         return _reacquire(c, candidates, p, events), events
     carrier = candidates.get(c.track_id) if c.track_id is not None else None
     if carrier is not None and carrier.t > c.t_confirmed:
-        if _fit(c, carrier, p, carrier=True) is not None:
+        fit = _fit(c, carrier, p, carrier=True)
+        if fit.inside:
             c = _confirm(c, carrier)
         elif c.misses + 1 >= p.misses_to_release:
             events.append(CustodyEvent(t, "released", c.target_id, c.track_id,
-                                       f"{c.misses + 1} reports outside the target's gate (id swap or wrong track)"))
+                                       f"{c.misses + 1} reports outside the target's gate (id swap or wrong track; "
+                                       f"last {fit})"))
             c = replace(c, track_id=None, misses=0, apart_ids=c.apart_ids | {carrier.track_id})
             carrier = None
         else:
@@ -231,7 +263,7 @@ def track_custody(c: Custody, picture: RadarPicture, params: CustodyParams | Non
 def _hand_over(c: Custody, candidates: dict[int, RadarTrack], p: CustodyParams,
                events: list[CustodyEvent]) -> Custody:
     """The track that takes over a coasting target: the best fit in the gate that can be the target."""
-    best: tuple[float, RadarTrack, str] | None = None
+    best: tuple[_Fit, RadarTrack, str] | None = None
     refused = set(c.refused_ids)
     swap_window = c.since_confirmed(max((tr.t for tr in candidates.values()), default=c.t_confirmed)) <= 1.0
     for tr in candidates.values():
@@ -240,18 +272,17 @@ def _hand_over(c: Custody, candidates: dict[int, RadarTrack], p: CustodyParams,
         if tr.track_id in refused or (tr.track_id in c.apart_ids and not (swap_window and tr.track_id in c.near_ids)):
             continue  # another object seen beside the target, or one that appeared away from it
         fit = _fit(c, tr, p)
-        if fit is None:
+        if not fit.inside:
             refused.add(tr.track_id)
             continue
         why = "id swap" if tr.track_id in c.apart_ids else "new id in the target's gate"
-        if best is None or fit < best[0]:
+        if best is None or fit.cost < best[0].cost:
             best = (fit, tr, why)
     if best is None:
         return replace(c, refused_ids=frozenset(refused))
     fit, tr, why = best
-    miss = float(np.linalg.norm(tr.position_enu - c.predicted(tr.t)))
     events.append(CustodyEvent(tr.t, "handover", c.target_id, tr.track_id,
-                               f"{why}, {miss:.0f} m from the prediction after {tr.t - c.t_confirmed:.1f} s"))
+                               f"{why} after {tr.t - c.t_confirmed:.1f} s ({fit})"))
     return _confirm(replace(c, apart_ids=c.apart_ids - {tr.track_id}, refused_ids=frozenset()), tr)
 
 

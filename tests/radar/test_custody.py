@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -59,8 +61,9 @@ def test_a_new_id_at_the_predicted_place_takes_over_but_a_bird_seen_beside_the_t
 def test_a_track_outside_the_gate_is_not_the_target_and_a_long_silence_loses_it():
     p = CustodyParams(max_coast_s=3.0)
     c = start()
-    # Dropped at t = 0; 2 s later the prediction is x = 10; the gate there is
-    # 3.5 * sqrt(12 + 4 + (0.5 * 8 * 4)^2) = 57.0 m: a new track 60 m off is something else.
+    # Dropped at t = 0; 2 s later the prediction is x = 10; the gate there is 3.5 sigma of the two
+    # reports, 3.5 * sqrt(12 + 12) = 17.1 m, plus 0.5 * 8 * 2^2 = 16 m of manoeuvre: 33.1 m. A new
+    # track 60 m off is something else.
     far = track(5, 2.0, (10, 160, 30), (5, 0, 0), first=2.0)
     c, ev = fly(c, [picture(2.0, far)], p)
     assert c.track_id is None and [e.kind for e in ev] == ["released"]
@@ -178,3 +181,17 @@ def test_custody_held_says_whether_the_tree_still_holds_its_target():
     statuses.append(bt.root.status)
     S, F = py_trees.common.Status.SUCCESS, py_trees.common.Status.FAILURE
     assert statuses == [F, S, S, F, F]
+
+
+def test_the_gate_grows_with_the_silence_but_never_past_what_the_target_can_fly():
+    """At 5 m/s, unseen for 5 s: it can have turned about at 8 m/s^2 (25 m/s of change in 3.125 s:
+    39.1 m) and flown on at 25 m/s for 1.875 s (46.9 m): 85.9 m plus 17.1 m of radar error, 103 m.
+    A new track 100 m off the prediction may be it; one 110 m off may not."""
+    from chaser_bt.radar.custody import _position_gate
+
+    c = start()
+    assert _position_gate(c, track(9, 5.0, (0, 0, 0)), CustodyParams()) == pytest.approx(
+        3.5 * math.sqrt(24.0) + 0.5 * 8 * 3.125**2 + 25 * 1.875, abs=1e-9)
+    near = fly(c, [picture(5.0, track(9, 5.0, (25 + 100, 100, 30), (5, 0, 0), first=5.0))])[0]
+    far = fly(c, [picture(5.0, track(9, 5.0, (25 + 110, 100, 30), (5, 0, 0), first=5.0))])[0]
+    assert near.track_id == 9 and far.track_id is None
