@@ -16,19 +16,16 @@ import py_trees
 from py_trees.common import Status
 
 from chaser_bt.clock import Clock
+from chaser_bt.tree import composites as _composites
 from chaser_bt.tree.composites import (
-    SWITCHES,
     AsyncFallback,
     AsyncSequence,
     Fallback,
     IfThenElse,
-    Parallel,
-    ParallelAll,
     ReactiveFallback,
     ReactiveSequence,
     Sequence,
     SequenceWithMemory,
-    TryCatch,
     WhileDoElse,
 )
 from chaser_bt.tree.decorators import (
@@ -55,7 +52,7 @@ from chaser_bt.tree.expressions import truth
 from chaser_bt.tree.node_base import ControlPorts as _ControlPorts
 from chaser_bt.tree.node_base import PortCheck, now, require_clock
 from chaser_bt.tree.node_kind import NodeKind
-from chaser_bt.tree.ports import Port, input_port
+from chaser_bt.tree.ports import BtcppInputs, Port, input_port
 
 __all__ = [
     "Sequence",
@@ -92,6 +89,22 @@ __all__ = [
 ]
 
 
+# ------------------------------------------------------------------- control nodes with typed ports
+
+
+def _converting(cls: type) -> type:
+    """``cls`` whose ports convert a blackboard value as BT.CPP's ``getInput`` does (:class:`BtcppInputs`):
+    a Parallel's ``success_count`` from a Script's ``2.0`` or ``'2'`` is 2, as in BT.CPP."""
+    namespace = {"__doc__": cls.__doc__, "__module__": cls.__module__, "__qualname__": cls.__qualname__}
+    return type(cls.__name__, (BtcppInputs, cls), namespace, register=False)
+
+
+Parallel = _converting(_composites.Parallel)
+ParallelAll = _converting(_composites.ParallelAll)
+TryCatch = _converting(_composites.TryCatch)
+SWITCHES: tuple[type, ...] = tuple(_converting(switch) for switch in _composites.SWITCHES)
+
+
 # ---------------------------------------------------------------------------------------- leaves
 
 
@@ -109,7 +122,7 @@ class AlwaysFailure(_ControlPorts, py_trees.behaviour.Behaviour, register=False)
         return Status.FAILURE
 
 
-class Wait(_ControlPorts, py_trees.behaviour.Behaviour, register=False):
+class Wait(BtcppInputs, _ControlPorts, py_trees.behaviour.Behaviour, register=False):
     """RUNNING until ``duration_s`` have passed on the mission clock, then SUCCESS (BT.CPP Sleep, in seconds)."""
 
     INPUT_PORTS: ClassVar[dict[str, Port]] = {
@@ -144,7 +157,7 @@ class Wait(_ControlPorts, py_trees.behaviour.Behaviour, register=False):
         return Status.SUCCESS if elapsed * self.UNITS_PER_SECOND >= duration else Status.RUNNING
 
 
-class SetBlackboard(_ControlPorts, py_trees.behaviour.Behaviour, register=False):
+class SetBlackboard(BtcppInputs, _ControlPorts, py_trees.behaviour.Behaviour, register=False):
     """BT.CPP SetBlackboard: writes ``value`` (a literal, or ``{key}`` to copy an entry) to the entry named by ``output_key``.
 
     As in BT.CPP, ``output_key`` is the entry's *name* (``output_key="x"``); the old chaser-bt
@@ -229,7 +242,7 @@ class ScriptCondition(Script, register=False):
 class Sleep(Wait, register=False):
     """BT.CPP Sleep: RUNNING until ``msec`` have passed on the mission clock, then SUCCESS (0: at once)."""
 
-    INPUT_PORTS: ClassVar[dict[str, Port]] = {"msec": input_port(int, "milliseconds to sleep")}
+    INPUT_PORTS: ClassVar[dict[str, Port]] = {"msec": input_port(int, "milliseconds to sleep", btcpp_type="unsigned")}
     DURATION_PORT: ClassVar[str] = "msec"
     UNITS_PER_SECOND: ClassVar[float] = 1000.0
 

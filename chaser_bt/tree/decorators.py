@@ -18,7 +18,7 @@ from py_trees.common import Status
 
 from chaser_bt.clock import Clock
 from chaser_bt.tree.entry_versions import entry_version
-from chaser_bt.tree.expressions import truth
+from chaser_bt.tree.expressions import ExpressionError, copy_into, truth
 from chaser_bt.tree.node_base import (
     SKIPPED,
     ControlPorts,
@@ -29,7 +29,7 @@ from chaser_bt.tree.node_base import (
     now,
     require_clock,
 )
-from chaser_bt.tree.ports import Port, input_port, output_port
+from chaser_bt.tree.ports import ANY_TYPE, BtcppInputs, Port, input_port, output_port
 
 __all__ = [
     "DecoratorNode",
@@ -55,8 +55,10 @@ __all__ = [
 Behaviour = py_trees.behaviour.Behaviour
 
 
-class DecoratorNode(ControlPorts, py_trees.decorators.Decorator, register=False):
+class DecoratorNode(BtcppInputs, ControlPorts, py_trees.decorators.Decorator, register=False):
     """A decorator whose :meth:`step` decides when to tick the child and returns the new status.
+
+    Its ports convert a blackboard value as BT.CPP's ``getInput`` does (:class:`BtcppInputs`).
 
     When it returns SKIPPED (its child was skipped) it keeps its state, ``suspended``, as a BT.CPP
     decorator stays RUNNING: the next tick resumes (a Repeat's count, a Delay's timer), a halt
@@ -139,11 +141,16 @@ class _LoopingDecorator(DecoratorNode, register=False):
     re-checks its conditions between rounds and an instant child never hangs a tick. A child that
     finishes after running starts its next round in the same tick. A skipped child makes the
     decorator skipped.
+
+    The count is read at the start of every tick, as BT.CPP reads it (and Retry again after each
+    failed attempt): a count the child lowers below the rounds already run ends the loop.
     """
 
     COUNT_PORT: ClassVar[str]
     #: The child status that starts another round (SUCCESS for Repeat, FAILURE for Retry).
     AGAIN_ON: ClassVar[Status]
+    #: Read the count again after each round (BT.CPP's RetryNode does; its RepeatNode does not).
+    READ_AFTER_ROUND: ClassVar[bool] = False
 
     def __init__(self, name: str, child: Behaviour) -> None:
         super().__init__(name=name, child=child)
@@ -156,9 +163,9 @@ class _LoopingDecorator(DecoratorNode, register=False):
 
     def initialise(self) -> None:
         self.rounds = 0
-        self._limit = self.get_input(self.COUNT_PORT)
 
     def step(self) -> Steps:
+        self._limit = self.get_input(self.COUNT_PORT)
         new_status = Status.SUCCESS if self.AGAIN_ON == Status.SUCCESS else Status.FAILURE
         while self._limit == -1 or self.rounds < self._limit:
             was_running = is_active(self.decorated)
@@ -168,6 +175,11 @@ class _LoopingDecorator(DecoratorNode, register=False):
                 new_status = child_status
                 break
             self.rounds += 1
+            if self.READ_AFTER_ROUND:
+                try:
+                    self._limit = self.get_input(self.COUNT_PORT)
+                except (TypeError, KeyError, py_trees.ports.NoDataAvailable):
+                    pass  # BT.CPP ignores this read's failure and keeps the count it had
             if not was_running and (self._limit == -1 or self.rounds < self._limit):
                 new_status = Status.RUNNING
                 break
@@ -193,6 +205,7 @@ class RetryUntilSuccessful(_LoopingDecorator, register=False):
     }
     COUNT_PORT = "num_attempts"
     AGAIN_ON = Status.FAILURE
+    READ_AFTER_ROUND = True
 
 
 class _ClockedDecorator(DecoratorNode, register=False):
@@ -208,7 +221,7 @@ class Timeout(_ClockedDecorator, register=False):
     """BT.CPP Timeout: halts the child and FAILS once ``msec`` have passed on the mission clock (0 = never)."""
 
     INPUT_PORTS: ClassVar[dict[str, Port]] = {
-        "msec": input_port(int, "milliseconds the child may run (0 = no limit)"),
+        "msec": input_port(int, "milliseconds the child may run (0 = no limit)", btcpp_type="unsigned"),
     }
 
     def __init__(self, name: str, child: Behaviour) -> None:
@@ -234,7 +247,7 @@ class Delay(_ClockedDecorator, register=False):
     """BT.CPP Delay: RUNNING for ``delay_msec`` on the mission clock, then ticks the child."""
 
     INPUT_PORTS: ClassVar[dict[str, Port]] = {
-        "delay_msec": input_port(int, "milliseconds to wait before ticking the child"),
+        "delay_msec": input_port(int, "milliseconds to wait before ticking the child", btcpp_type="unsigned"),
     }
 
     def __init__(self, name: str, child: Behaviour) -> None:
@@ -269,7 +282,11 @@ class RunOnce(DecoratorNode, register=False):
     def step(self) -> Steps:
         if self.result is not None:
             self.feedback_message = f"ran once: {self.result.name}"
-            return SKIPPED if self.get_input("then_skip") else self.result
+            try:
+                skip = self.get_input("then_skip")
+            except (TypeError, KeyError, py_trees.ports.NoDataAvailable):
+                skip = True  # BT.CPP: a then_skip that cannot be read counts as true
+            return SKIPPED if skip else self.result
         status = yield from super().step()
         if status in (Status.SUCCESS, Status.FAILURE):
             self.result = status
@@ -290,7 +307,10 @@ class Precondition(DecoratorNode, register=False):
     SCRIPT_PORTS: ClassVar[tuple[str, ...]] = ("if",)
     INPUT_PORTS: ClassVar[dict[str, Port]] = {
         "if": input_port(str, "the script that must be true to tick the child"),
-        "else": input_port(str, "status returned when it is false: SUCCESS, FAILURE, SKIPPED or RUNNING", default="FAILURE"),
+        "else": input_port(
+            str, "status returned when it is false: SUCCESS, FAILURE, SKIPPED or RUNNING", default="FAILURE",
+            btcpp_type="NodeStatus",
+        ),
     }
 
     def __init__(self, name: str, child: Behaviour) -> None:
@@ -376,7 +396,8 @@ class Loop(DecoratorNode, register=False):
 
     RUNNING after each item the child finishes on (even the last: the next tick finds the queue
     empty and returns ``if_empty``, SUCCESS by default); a child FAILURE ends the loop with
-    FAILURE. ``queue`` is a literal list (``1;2;3``) or a blackboard list.
+    FAILURE. ``queue`` is a literal list (``1;2;3``), a blackboard list, or blackboard text
+    (``'4;5'``, converted item by item as BT.CPP does); it is read when the loop starts.
     """
 
     ITEM: ClassVar[type] = object
@@ -385,8 +406,11 @@ class Loop(DecoratorNode, register=False):
         super().__init_subclass__(**kwargs)
         if cls.ITEM is not object:
             cls.INPUT_PORTS = {
-                "queue": input_port(list[cls.ITEM], "the items, in order"),
-                "if_empty": input_port(str, "status when the queue is empty: SUCCESS, FAILURE or SKIPPED", default="SUCCESS"),
+                "queue": input_port(list[cls.ITEM], "the items, in order", btcpp_type=ANY_TYPE),
+                "if_empty": input_port(
+                    str, "status when the queue is empty: SUCCESS, FAILURE or SKIPPED", default="SUCCESS",
+                    btcpp_type="NodeStatus",
+                ),
             }
             cls.OUTPUT_PORTS = {"value": output_port(cls.ITEM, "the current item")}
 
@@ -404,13 +428,31 @@ class Loop(DecoratorNode, register=False):
         if not self._child_running:
             assert self._queue is not None
             if self._queue:
-                self._set_output("value", self._queue.pop(0))
+                self._write_value(self._queue.pop(0))
                 popped = True
         if not popped and not self._child_running:
             return _STATUS_NAMES[self.get_input("if_empty").upper()]
         status = yield from super().step()
         self._child_running = status == Status.RUNNING
         return Status.FAILURE if status == Status.FAILURE else Status.RUNNING
+
+
+    def _write_value(self, item: Any) -> None:
+        """BT.CPP's ``setOutput``: an entry that holds a value keeps its type (``Any::copyInto``).
+
+        LoopDouble's 1.0 into an entry a script set to the int 3 is stored as the int 1; text into
+        a number entry (or a number into a text one) raises, as BT.CPP throws.
+        """
+        try:
+            current = py_trees.blackboard.Blackboard.get(self._get_blackboard_key("value"))
+        except KeyError:
+            self._set_output("value", item)
+            return
+        try:
+            value = copy_into(item, current)
+        except ExpressionError as e:
+            raise TypeError(f"{self.name}: output port 'value': {e}") from None
+        self.blackboard_client.set("value", value)
 
 
 class LoopInt(Loop, register=False):

@@ -34,6 +34,8 @@ import py_trees.ports
 import yaml
 from py_trees.ports_utils import convert_str_to_type, is_instance_of_type
 
+from chaser_bt.tree.expressions import ExpressionError, parse_double_prefix, parse_int_prefix, to_text
+
 __all__ = [
     "Port",
     "input_port",
@@ -48,6 +50,11 @@ __all__ = [
     "parse_reference",
     "is_reference_text",
     "SAME_AS_PORT",
+    "ANY_TYPE",
+    "btcpp_type",
+    "convert_from_string",
+    "btcpp_cast",
+    "BtcppInputs",
 ]
 
 #: ``{=}``: BT.CPP v4's shorthand for "the key named like this port".
@@ -70,6 +77,9 @@ class Port(py_trees.ports.PortInformation):
         above: values must be strictly greater than this (an altitude: ``above=0``).
         length: a list port's exact number of items (a 3-vector: ``length=3``).
         infinite: ``inf`` (and ``-inf``) are values this port takes; by default a number must be finite.
+        btcpp_type: the C++ type BT.CPP declares the port with, where the Python type does not say
+            it (``"unsigned"`` for a ``msec``, ``"AnyTypeAllowed"`` for an untyped port); see
+            :func:`btcpp_type`.
     """
 
     default_key: str | None = None
@@ -78,6 +88,7 @@ class Port(py_trees.ports.PortInformation):
     above: float | None = None
     length: int | None = None
     infinite: bool = False
+    btcpp_type: str | None = None
 
     @property
     def constraint(self) -> str:
@@ -136,6 +147,7 @@ def input_port(
     above: float | None = None,
     length: int | None = None,
     infinite: bool = False,
+    btcpp_type: str | None = None,
 ) -> Port:
     """Declare an input port; a default is coerced like a tree literal (``[0, 0, 0]`` for ``list[float]``).
 
@@ -158,6 +170,7 @@ def input_port(
         above=above,
         length=length,
         infinite=infinite,
+        btcpp_type=btcpp_type,
     )
     problem = port.violation(default) if default is not None else None
     if problem is not None:
@@ -193,9 +206,13 @@ def _number(value: float) -> str:
     return str(int(value)) if float(value).is_integer() else str(value)
 
 
-def output_port(data_type: Any, description: str, *, default_key: str | None = None) -> Port:
+def output_port(
+    data_type: Any, description: str, *, default_key: str | None = None, btcpp_type: str | None = None
+) -> Port:
     """Declare an output port; trees need not wire outputs (BT.CPP), unwired ones write a private key."""
-    return Port(data_type=data_type, required=False, description=description, default_key=default_key)
+    return Port(
+        data_type=data_type, required=False, description=description, default_key=default_key, btcpp_type=btcpp_type
+    )
 
 
 def is_reference_text(value: Any) -> bool:
@@ -309,9 +326,26 @@ def _coerce_list(value: Any, data_type: Any) -> list[Any]:
     return items
 
 
+#: The texts BT.CPP's ``convertFromString`` reads whole, for a literal: an int, a double (what
+#: ``std::from_chars`` takes: no ``+``, no blanks), a bool. BT.CPP also reads a number at the start
+#: of longer text (``2.5`` or ``2abc`` as the int 2); a tree here must say exactly what it means.
+_LITERAL_FORMS = {
+    int: re.compile(r"-?\d+"),
+    float: re.compile(r"-?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|inf(?:inity)?|nan)", re.IGNORECASE),
+    bool: re.compile(r"[01]|true|false|True|False|TRUE|FALSE"),
+}
+
+
 def _from_string(value: str, data_type: Any) -> Any:
     if data_type is str:
         return value
+    form = _LITERAL_FORMS.get(data_type)
+    if form is not None:
+        if not form.fullmatch(value):
+            raise LiteralError(_mismatch(value, data_type))
+        if data_type is bool:
+            return value in ("1", "true", "True", "TRUE")
+        return data_type(value)  # 1e400 is inf, which the port's finiteness check refuses in its own words
     try:
         ok, converted = convert_str_to_type(value, data_type)
     except (ValueError, TypeError, ImportError, AttributeError):
@@ -393,3 +427,135 @@ def _text(value: Any) -> str:
             raise LiteralError(f"list {value!r} has an item that a ';'-separated text cannot hold")
         return ";".join(items)
     return str(value)
+
+
+# ------------------------------------------------------------------ BT.CPP's typed entries and conversions
+
+#: ``btcpp_type`` of a port BT.CPP declares without a type (``BidirectionalPort("queue")``).
+ANY_TYPE = "AnyTypeAllowed"
+
+_CPP_SCALARS = {int: "int", float: "double", bool: "bool", str: "std::string"}
+_INT_RANGES = {"int": (-(2**31), 2**31), "unsigned": (0, 2**32), "int64_t": (-(2**63), 2**63), "uint64_t": (0, 2**64)}
+
+
+def btcpp_type(port: py_trees.ports.PortInformation) -> str | None:
+    """The C++ type BT.CPP would give the port's blackboard entry, or None where it takes any type.
+
+    ``int`` -> ``int``, ``float`` -> ``double``, ``bool``, ``str`` -> ``std::string``, a list ->
+    ``std::vector<...>``, an enum by its name; a :class:`Port` may say otherwise (``btcpp_type``).
+    Two ports that give one entry different types are what BT.CPP refuses when a tree loads.
+    """
+    explicit = getattr(port, "btcpp_type", None)
+    if explicit is not None:
+        return None if explicit == ANY_TYPE else explicit
+    return _cpp_name(port.data_type)
+
+
+def _cpp_name(data_type: Any) -> str | None:
+    if _is_any(data_type):
+        return None
+    if data_type in _CPP_SCALARS:
+        return _CPP_SCALARS[data_type]
+    if typing.get_origin(data_type) is list:
+        args = typing.get_args(data_type)
+        return f"std::vector<{_cpp_name(args[0]) if args else 'Any'}>"
+    return type_name(data_type)
+
+
+def convert_from_string(text: str, data_type: Any, cpp: str | None = None) -> Any:
+    """BT.CPP's ``convertFromString<T>`` for the port type: how BT.CPP reads text into a typed port.
+
+    An integer is the digits at the start (``'2.5'`` is 2, ``'2abc'`` 2; ``'+2'`` and ``' 2'`` fail),
+    a double likewise (``std::from_chars``), a bool is one of ``0 1 true false True False TRUE
+    FALSE``, a list splits on ``;``. ``cpp`` is the port's :func:`btcpp_type` (``unsigned``...).
+
+    Raises:
+        ExpressionError: the text does not convert (BT.CPP throws).
+    """
+    if data_type is str or _is_any(data_type):
+        return text
+    if typing.get_origin(data_type) is list or data_type is list:
+        args = typing.get_args(data_type)
+        inner = args[0] if args else str
+        parts = text.split(";")
+        if parts and parts[-1] == "":
+            parts.pop()  # BT.CPP's splitString: "" has no items, "a;" one
+        return [convert_from_string(part, inner) for part in parts]
+    if data_type is bool:
+        if text in ("1", "true", "True", "TRUE"):
+            return True
+        if text in ("0", "false", "False", "FALSE"):
+            return False
+        raise ExpressionError(f"{text!r} is no bool (BT.CPP reads 0, 1, true, false, True, False, TRUE, FALSE)")
+    if data_type is int:
+        value = parse_int_prefix(text)
+        low, high = _INT_RANGES.get(cpp or "int", _INT_RANGES["int"])
+        if not low <= value < high:
+            raise ExpressionError(f"{text!r} is out of the range of {cpp or 'int'}")
+        return value
+    if data_type is float:
+        return parse_double_prefix(text)
+    if _is_enum(data_type):
+        member = data_type.__members__.get(text)
+        if member is None:
+            raise ExpressionError(f"{text!r} is no {data_type.__name__} (one of {', '.join(data_type.__members__)})")
+        return member
+    raise ExpressionError(f"BT.CPP has no conversion from text to {type_name(data_type)}")
+
+
+def btcpp_cast(value: Any, data_type: Any, cpp: str | None = None) -> Any:
+    """What BT.CPP's ``getInput<T>`` makes of a blackboard value: text through :func:`convert_from_string`,
+    a number through ``Any::cast<T>`` (a whole double is an int, 0 and 1 are bools, a double is true
+    when non-zero, a number as text is ``std::to_string``'s).
+
+    Raises:
+        ExpressionError: BT.CPP refuses the conversion (a fraction to an int, 2 to a bool...).
+    """
+    try:
+        matches = is_instance_of_type(value, data_type)
+    except NotImplementedError:
+        matches = False
+    if matches and not (data_type in (int, float) and isinstance(value, bool)):
+        return value
+    if isinstance(value, str):
+        return convert_from_string(value, data_type, cpp)
+    number = isinstance(value, (int, float)) and not isinstance(value, enum.Enum)
+    if number and data_type is str:
+        return to_text(value)
+    if number and data_type is float:
+        return float(value)
+    if number and data_type is int:
+        if isinstance(value, float) and not (math.isfinite(value) and value.is_integer()):
+            raise ExpressionError(f"{value!r} is not a whole number (BT.CPP: invalid floating point to integer conversion)")
+        integer = int(value)
+        low, high = _INT_RANGES.get(cpp or "int", _INT_RANGES["int"])
+        if not low <= integer < high:
+            raise ExpressionError(f"{value!r} is out of the range of {cpp or 'int'}")
+        return integer
+    if number and data_type is bool:
+        if isinstance(value, float):
+            return value != 0.0
+        if value not in (0, 1):
+            raise ExpressionError(f"{value!r} is no bool (an integer must be 0 or 1)")
+        return bool(value)
+    raise ExpressionError(f"BT.CPP cannot convert {value!r} to {type_name(data_type)}")
+
+
+class BtcppInputs:
+    """A mixin for a ports behaviour: ``get_input`` converts a blackboard value as BT.CPP's ``getInput<T>`` does.
+
+    py_trees refuses a value of another type than the port's; BT.CPP converts: a Script's ``3.0``
+    read by an ``int`` port is 3, ``'2'`` is 2, ``'4;5'`` read by a list port is ``[4, 5]``. What
+    BT.CPP refuses (``2.5`` for an int) still raises TypeError.
+    """
+
+    def get_input(self, port_name: str, default: Any = None) -> Any:
+        try:
+            return super().get_input(port_name, default)  # type: ignore[misc]
+        except TypeError:
+            port = self.input_ports()[port_name]  # type: ignore[attr-defined]
+            value = self.blackboard_client.get(port_name)  # type: ignore[attr-defined]
+            try:
+                return btcpp_cast(value, port.data_type, btcpp_type(port))
+            except ExpressionError as e:
+                raise TypeError(f"{self.name}: input port '{port_name}': {e}") from None  # type: ignore[attr-defined]

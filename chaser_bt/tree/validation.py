@@ -15,6 +15,7 @@ from __future__ import annotations
 import difflib
 import enum
 import logging
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
@@ -30,14 +31,16 @@ from chaser_bt.tree.ports import (
     SAME_AS_PORT,
     LiteralError,
     Port,
+    btcpp_type,
     coerce_literal,
+    convert_from_string,
     finite_violation,
     is_reference_text,
     literal_from_text,
     parse_reference,
     type_name,
 )
-from chaser_bt.tree.preconditions import Condition, Constant
+from chaser_bt.tree.preconditions import BlackboardEnv, Condition, Constant
 from chaser_bt.tree.registry import NodeKind, NodeType, Registry
 
 __all__ = ["ResolvedNode", "Resolution", "resolve_document", "typed_literal", "SUBTREE_TYPE"]
@@ -47,6 +50,9 @@ logger = logging.getLogger(__name__)
 #: The node type of a SubTree instance (a pass-through wrapper around the instantiated tree).
 SUBTREE_TYPE = NodeType(SUBTREE_ID, SubTree, NodeKind.DECORATOR)
 
+
+#: BT.CPP's C++ type for ports whose Python declaration (in composites.py) does not say it.
+_BTCPP_PORT_TYPES: dict[tuple[str, str], str] = {(f"Switch{n}", "variable"): "std::string" for n in range(2, 7)}
 
 #: Characters BT.CPP 4.10 refuses in a tree or node ID (``findForbiddenChar``).
 _FORBIDDEN_IN_IDS = frozenset(" \t\n\r<>&\"'/\\:*?|.")
@@ -119,6 +125,67 @@ class _Literal:
     from_text: bool = False
 
 
+_INT_TEXT = re.compile(r"-?\d+")
+_DOUBLE_TEXT = re.compile(r"-?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|inf(?:inity)?|nan)", re.IGNORECASE)
+
+
+def subtree_literal(value: Any, from_text: bool) -> Any:
+    """A SubTree literal as a script in the subtree sees it, as BT.CPP 4.10 stores it in the subtree's blackboard.
+
+    From XML text: an integer (no ``.``, ``e``) is an int, another number a float, anything else the
+    text itself (``true``, ``0x1F``, ``1;2``). A YAML literal keeps its type.
+    """
+    if not from_text or not isinstance(value, str):
+        return value
+    if _INT_TEXT.fullmatch(value) and -(2**63) <= int(value) < 2**63:
+        return int(value)
+    if _DOUBLE_TEXT.fullmatch(value):
+        return float(value)
+    return value
+
+
+@dataclass(frozen=True)
+class _Declared:
+    """A blackboard entry as the first port wired to it declared it (BT.CPP creates it when the tree loads)."""
+
+    cpp: str | None
+    data_type: Any
+    what: str
+    location: Location
+
+
+class _DeclaredEnv(BlackboardEnv):
+    """A script's blackboard, where an entry a port declares exists before anything writes it (BT.CPP).
+
+    Text assigned to such an entry is converted as the declaring port reads text (``converter``).
+    """
+
+    def __init__(self, bindings: dict[str, str | Constant], declared: dict[str, _Declared]) -> None:
+        super().__init__(bindings)
+        self.declared = declared
+
+    def has(self, name: str) -> bool:
+        binding = self.bindings[name]
+        return super().has(name) or (isinstance(binding, str) and binding in self.declared)
+
+    def converter(self, name: str) -> Any:
+        binding = self.bindings[name]
+        declared = self.declared.get(binding) if isinstance(binding, str) else None
+        if declared is None or declared.cpp is None:
+            return None
+        return lambda text: convert_from_string(text, declared.data_type, declared.cpp)
+
+
+@dataclass(frozen=True)
+class _Script(Condition):
+    """A :class:`Condition` run against its tree's declared entries (:class:`_DeclaredEnv`)."""
+
+    declared: dict[str, _Declared] = field(default_factory=dict, compare=False, repr=False)
+
+    def run(self) -> Any:
+        return self.expression.run(_DeclaredEnv(self.bindings, self.declared))
+
+
 _Binding = str | _Literal
 
 
@@ -156,6 +223,9 @@ class _Resolver:
         self.namespaces: set[str] = set()
         self.writes: set[str] = set()
         self.reads: list[_Read] = []
+        #: absolute key -> the entry as its first port declared it, in BT.CPP's order of creation
+        #: (depth first, a node before its children); shared with every script of the tree.
+        self.declared: dict[str, _Declared] = {}
 
     def problem(self, location: Location, message: str) -> None:
         self.problems.append(Problem(location.file, location.line, location.column, message))
@@ -280,33 +350,33 @@ class _Resolver:
         for variable in expression.variables:
             binding = scope.resolve(variable)
             if isinstance(binding, _Literal):
-                value = binding.value
-                if binding.from_text and isinstance(value, str):
-                    value = literal_from_text(value, object)
-                bindings[variable] = Constant(value)
+                bindings[variable] = Constant(subtree_literal(binding.value, binding.from_text))
             else:
                 bindings[variable] = binding
                 if variable in expression.assigned:
                     self.writes.add(binding)
                 else:
                     self.reads.append(_Read(binding, location, what))
-        return Condition(kind, expression, bindings)
+        return _Script(kind, expression, bindings, self.declared)
 
     def plain_node(self, spec: NodeSpec, scope: _Scope, stack: tuple[str, ...]) -> ResolvedNode | None:
         if spec.node_id == SUBTREE_ID:
             return self.subtree(spec, scope, stack)
-        children = [self.node(child, scope, stack) for child in spec.children]
         try:
             node_type = self.registry.get(spec.node_id)
         except UnknownNode as e:
             self.problem(spec.location, str(e))
+            for child in spec.children:
+                self.node(child, scope, stack)
             return None
         self.check_children(spec, node_type)
         resolved = ResolvedNode(node_type, spec.display_name, scope.namespace, spec.location)
+        # Ports before children: BT.CPP creates a node's entries before its children's.
         for port, arg in spec.ports.items():
             self.port(spec, node_type, port, arg, scope, resolved)
         self.unwired_ports(spec, node_type, scope, resolved)
         self.check_values(spec, node_type, resolved)
+        children = [self.node(child, scope, stack) for child in spec.children]
         resolved.children = [child for child in children if child is not None]
         return resolved
 
@@ -350,7 +420,8 @@ class _Resolver:
                 resolved.literals[port] = str(arg.value)
                 resolved.wiring[port] = repr(str(arg.value))
             return
-        if port in getattr(node_type.cls, "KEY_NAME_PORTS", ()):
+        names_entry = port in getattr(node_type.cls, "KEY_NAME_PORTS", ())
+        if names_entry:
             arg = self.key_name(spec, port, arg, getattr(node_type.cls, "BRACES_ARE_OLD_FORM", True))
             if arg is None:
                 return
@@ -368,6 +439,9 @@ class _Resolver:
             self.problem(arg.value_at, f"port '{port}' of {spec.node_id}: {e}")
             return
         binding = scope.resolve(port if key == SAME_AS_PORT else key)
+        if not names_entry and not isinstance(binding, _Literal):
+            # (a port naming an entry, SetBlackboard's output_key, declares nothing in BT.CPP)
+            self.declare(binding, spec, node_type, port, declaration, is_output, arg.value_at)
         if isinstance(binding, _Literal):
             if is_output:
                 self.problem(
@@ -384,6 +458,39 @@ class _Resolver:
             self.writes.add(binding)
         elif declaration.required and not declaration.has_default:
             self.reads.append(_Read(binding, arg.value_at, f"port '{port}' of {spec.node_id}"))
+
+    def declare(
+        self, key: str, spec: NodeSpec, node_type: NodeType, port: str, declaration: Any, is_output: bool,
+        location: Location,
+    ) -> None:
+        """BT.CPP's entry creation when a tree loads: the first port wired to an entry gives its type.
+
+        A later port of another type is refused, as BT.CPP refuses it ("the port was initially created
+        with type [int] and, later type [std::string] was used somewhere else"), unless the entry is
+        text, which every input reads by conversion; an output writing another type into a text entry
+        loads in BT.CPP and throws at the write: refused here before flight.
+        """
+        cpp = _BTCPP_PORT_TYPES.get((node_type.node_id, port), btcpp_type(declaration))
+        what = f"port '{port}' of {spec.node_id}"
+        previous = self.declared.get(key)
+        if previous is None:
+            self.declared[key] = _Declared(cpp, declaration.data_type, what, location)
+            return
+        if previous.cpp is None or cpp is None or previous.cpp == cpp:
+            return
+        first = f"{previous.what} (line {previous.location.line}) declared it {previous.cpp}"
+        if previous.cpp != "std::string":
+            self.problem(
+                location,
+                f"{what} uses the blackboard entry '{key}' as {cpp}, but {first}: BehaviorTree.CPP refuses "
+                "a port type that differs from the entry's when the tree loads",
+            )
+        elif is_output:
+            self.problem(
+                location,
+                f"{what} writes {cpp} into the blackboard entry '{key}', but {first}: BehaviorTree.CPP "
+                "throws at that write (once declared, the type of a port shall not change)",
+            )
 
     def key_name(self, spec: NodeSpec, port: str, arg: PortArg, braces_are_old_form: bool = True) -> PortArg | None:
         """A port whose value names a blackboard entry (BT.CPP's ``SetBlackboard output_key="x"``), as a reference.
@@ -484,13 +591,18 @@ class _Resolver:
         self.instantiated.add(ref.tree_id)
         used = set(self.keys_used(ref.tree_id, set()))
         bindings: dict[str, _Binding] = {}
-        defaults = self.document.subtree_defaults.get(ref.tree_id, {})
+        # BT.CPP applies a <TreeNodesModel> default only to an instance without _autoremap.
+        defaults = {} if ref.autoremap else self.document.subtree_defaults.get(ref.tree_id, {})
         ports = {**{p: a for p, a in defaults.items() if p in used}, **spec.ports}
+        name = spec.name or ref.tree_id
+        namespace = self.namespace(scope.namespace, name)
         for port, arg in ports.items():
             if port not in used:
                 listed = ", ".join(sorted(used)) or "none"
                 self.problem(arg.location, f"SubTree '{ref.tree_id}' uses no key '{port}'; its keys: {listed}")
             if not is_reference_text(arg.value):
+                # Typed by the ports that read it (BT.CPP 4.10 makes "3" an int entry, which a double
+                # or unsigned port then refuses at load; chaser-bt does not: see docs/trees.md).
                 bindings[port] = _Literal(arg.value, arg.value_at, arg.from_text)
                 continue
             try:
@@ -499,8 +611,7 @@ class _Resolver:
                 self.problem(arg.value_at, f"SubTree port '{port}': {e}")
                 continue
             bindings[port] = scope.resolve(port if key == SAME_AS_PORT else key)
-        name = spec.name or ref.tree_id
-        child_scope = _Scope(self.namespace(scope.namespace, name), bindings, scope, ref.autoremap)
+        child_scope = _Scope(namespace, bindings, scope, ref.autoremap)
         root = self.tree(ref.tree_id, child_scope, (*stack, ref.tree_id))
         resolved = ResolvedNode(SUBTREE_TYPE, name, scope.namespace, spec.location)
         resolved.wiring = {

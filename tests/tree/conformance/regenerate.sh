@@ -6,6 +6,7 @@
 # Builds only our harness (harness/, linked against BTCPP_PREFIX) in a temporary folder, then
 # writes golden/NNN_name.trace for every trees/ and bad/ file, and golden/shipped/*.trace for
 # every shipped tree under trees/ loaded with stub leaves from `chaser-bt export-model`.
+# The generated trees (trees/2NN_gen_*.xml) come from generate.py: run it first when its cases change.
 set -eu
 : "${BTCPP_PREFIX:?set BTCPP_PREFIX to an installed BehaviorTree.CPP 4.10 prefix}"
 HERE=$(cd "$(dirname "$0")" && pwd)

@@ -9,7 +9,9 @@ leaves in order (``  A S`` ticked and returned SUCCESS, ``  A halt`` halted whil
 
 from __future__ import annotations
 
+import decimal
 import enum
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,6 +22,7 @@ from py_trees.common import Status
 
 from chaser_bt.clock import ManualClock
 from chaser_bt.tree import Registry, TreeError, input_port, load_tree, reset_blackboard
+from chaser_bt.tree.ports import BtcppInputs
 
 HERE = Path(__file__).parent
 _RESULTS = {"S": Status.SUCCESS, "F": Status.FAILURE, "R": Status.RUNNING}
@@ -47,8 +50,12 @@ def read_config(text: str) -> Config:
     return config
 
 
-class Scripted(py_trees.ports.BehaviourWithPorts, register=False):
-    """The harness's scripted leaf: tick k returns the k-th of ``results`` (the last repeats)."""
+class Scripted(BtcppInputs, py_trees.ports.BehaviourWithPorts, register=False):
+    """The harness's scripted leaf: tick k returns the k-th of ``results`` (the last repeats).
+
+    As the harness's: ``results`` is read at the first tick (converted as BT.CPP's ``getInput``
+    does), and anything but F or R is a SUCCESS.
+    """
 
     INPUT_PORTS = {"results": input_port(str, "per-tick results: S, F or R", default="S")}
     OUTPUT_PORTS: dict = {}
@@ -56,13 +63,19 @@ class Scripted(py_trees.ports.BehaviourWithPorts, register=False):
     def setup(self, **kwargs: Any) -> None:
         self.events: list[str] = kwargs["events"]
         self.count = 0
+        self.results: list[str] | None = None
 
     def update(self) -> Status:
-        results = [r for r in self.get_input("results").split(",") if r] or ["S"]
-        result = results[min(self.count, len(results) - 1)]
+        if self.results is None:
+            try:
+                text = self.get_input("results")
+            except TypeError:  # the harness ignores a getInput that fails and keeps "S"
+                text = "S"
+            self.results = [r for r in text.split(",") if r] or ["S"]
+        result = self.results[min(self.count, len(self.results) - 1)]
         self.count += 1
         self.events.append(f"{self.name} {result}")
-        return _RESULTS[result]
+        return _RESULTS.get(result, Status.SUCCESS)
 
     def terminate(self, new_status: Status) -> None:
         if new_status == Status.INVALID and self.status == Status.RUNNING:
@@ -77,6 +90,29 @@ def registry() -> Registry:
     return registry
 
 
+def to_chars(value: float) -> str:
+    """``std::to_chars(double)``: the shortest digits, fixed or scientific, whichever is shorter (fixed on a tie)."""
+    if math.isnan(value):
+        return "-nan" if math.copysign(1.0, value) < 0 else "nan"
+    if math.isinf(value):
+        return "inf" if value > 0 else "-inf"
+    sign, digits, exponent = decimal.Decimal(repr(value)).as_tuple()
+    text = "".join(map(str, digits)).rstrip("0") or "0"
+    exponent += len(digits) - len(text)  # value = text * 10**exponent
+    point = len(text) + exponent  # digits before the decimal point
+    if exponent >= 0:
+        fixed = text + "0" * exponent
+    elif point > 0:
+        fixed = text[:point] + "." + text[point:]
+    else:
+        fixed = "0." + "0" * -point + text
+    power = point - 1
+    scientific = text[0] + ("." + text[1:] if len(text) > 1 else "") + f"e{'-' if power < 0 else '+'}{abs(power):02d}"
+    if text == "0":
+        fixed = scientific = "0"
+    return ("-" if sign else "") + (fixed if len(fixed) <= len(scientific) else scientific)
+
+
 def show(value: Any) -> str:
     """A blackboard value as the harness prints it."""
     if isinstance(value, bool):
@@ -86,7 +122,7 @@ def show(value: Any) -> str:
     if isinstance(value, int):
         return str(value)
     if isinstance(value, float):
-        return str(int(value)) if value.is_integer() and abs(value) < 1e16 else repr(value)
+        return to_chars(value)
     if isinstance(value, str):
         return f"'{value}'"
     return f"<{type(value).__name__}>"

@@ -277,6 +277,44 @@ void register_stubs(BT::BehaviorTreeFactory& factory, const std::string& manifes
   }
 }
 
+// What BT.CPP itself prints on std::cout (Blackboard::debugMessage() before a type error) is
+// information: it is kept, after the trace line it belongs to, as '#' lines.
+class CaptureStdout
+{
+public:
+  CaptureStdout() : previous_(std::cout.rdbuf(captured_.rdbuf()))
+  {}
+  ~CaptureStdout()
+  {
+    restore();
+  }
+  std::string release()
+  {
+    restore();
+    std::string out;
+    std::string line;
+    while(std::getline(captured_, line))
+    {
+      out += "# btcpp: " + line + "\n";
+    }
+    captured_.str("");
+    captured_.clear();
+    return out;
+  }
+
+private:
+  void restore()
+  {
+    if(previous_ != nullptr)
+    {
+      std::cout.rdbuf(previous_);
+      previous_ = nullptr;
+    }
+  }
+  std::stringstream captured_;
+  std::streambuf* previous_;
+};
+
 int run(BT::BehaviorTreeFactory& factory, const std::string& tree_path)
 {
   const std::string text = read_file(tree_path);
@@ -284,11 +322,22 @@ int run(BT::BehaviorTreeFactory& factory, const std::string& tree_path)
   BT::Tree tree;
   try
   {
-    tree = factory.createTreeFromFile(std::filesystem::absolute(tree_path));
+    CaptureStdout capture;
+    try
+    {
+      tree = factory.createTreeFromFile(std::filesystem::absolute(tree_path));
+    }
+    catch(...)
+    {
+      const std::string printed = capture.release();
+      std::cout << "load error\n" << printed;
+      throw;
+    }
+    std::cout << capture.release();
   }
   catch(const std::exception& e)
   {
-    std::cout << "load error\n# " << std::regex_replace(e.what(), std::regex("\n"), " ") << "\n";
+    std::cout << "# " << std::regex_replace(e.what(), std::regex("\n"), " ") << "\n";
     return 0;
   }
   TransitionLog log(tree.rootNode());
@@ -299,19 +348,23 @@ int run(BT::BehaviorTreeFactory& factory, const std::string& tree_path)
       std::this_thread::sleep_for(std::chrono::milliseconds(config.period_ms));
     }
     BT::NodeStatus status;
+    CaptureStdout capture;
     try
     {
       status = tree.tickExactlyOnce();
     }
     catch(const std::exception& e)
     {
+      const std::string printed = capture.release();
       std::cout << "tick " << n << " exception\n";
       flush_events(std::cout);
-      std::cout << "# " << std::regex_replace(e.what(), std::regex("\n"), " ") << "\n";
+      std::cout << printed << "# " << std::regex_replace(e.what(), std::regex("\n"), " ") << "\n";
       return 0;
     }
+    const std::string printed = capture.release();
     std::cout << "tick " << n << " " << BT::toStr(status) << "\n";
     flush_events(std::cout);
+    std::cout << printed;
     for(const auto& key : config.keys)
     {
       auto entry = tree.rootBlackboard()->getEntry(key);
