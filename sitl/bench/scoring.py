@@ -621,11 +621,13 @@ class RehearsalObserver:
             return None
         rng = _port(self._follow, "slant_range_m") if self._follow is not None else None
         elev = _port(self._follow, "elevation_deg") if self._follow is not None else None
+        # A run interrupted (Ctrl-C) in the middle of a row leaves the columns uneven: whole rows only.
+        n = min(len(col) for col in (c.t, c.own, c.yaw, c.target, c.in_fov, c.detected, c.mode, c.phase, c.tip))
         return FlightTrace(
-            t=np.array(c.t, float), ownship_enu=np.array(c.own, float).reshape(-1, 3),
-            ownship_yaw_rad=np.array(c.yaw, float), target_enu=np.array(c.target, float).reshape(-1, 3),
-            in_fov=np.array(c.in_fov, float), detected=np.array(c.detected, float), mode=c.mode, phase=c.phase,
-            tip=c.tip, events=list(self.events), beliefs=list(self.beliefs), target_source="truth",
+            t=np.array(c.t[:n], float), ownship_enu=np.array(c.own[:n], float).reshape(-1, 3),
+            ownship_yaw_rad=np.array(c.yaw[:n], float), target_enu=np.array(c.target[:n], float).reshape(-1, 3),
+            in_fov=np.array(c.in_fov[:n], float), detected=np.array(c.detected[:n], float), mode=c.mode[:n],
+            phase=c.phase[:n], tip=c.tip[:n], events=list(self.events), beliefs=list(self.beliefs), target_source="truth",
             desired_range_m=float(rng) if rng is not None else math.nan,
             desired_elevation_rad=math.radians(float(elev)) if elev is not None else math.nan,
             meta={**meta, "ownship_source": "truth"}, frames=[] if self.frames is None else self.frames.snapshots(),

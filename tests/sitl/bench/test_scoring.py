@@ -212,3 +212,19 @@ def test_follow_geometry_errors_without_a_follow_phase_or_a_desired_geometry_are
                                               desired_range_m=24.0, desired_elevation_rad=0.3)) == (None, None)
     assert follow_geometry_errors(FlightTrace(t=np.zeros(2), ownship_enu=own, target_enu=rel,
                                               phase=["follow"] * 2)) == (None, None)
+
+
+def test_a_trace_cut_in_the_middle_of_a_row_keeps_whole_rows_only():
+    """Ctrl-C can land while a tick's row is half written: the trace is cut to the rows written whole."""
+    from sitl.bench.scoring import RehearsalObserver, _TraceColumns
+
+    obs = object.__new__(RehearsalObserver)
+    obs._cols, obs._follow, obs.events, obs.beliefs, obs.frames = _TraceColumns(), None, [], [], None
+    c = obs._cols
+    for k in range(2):  # two whole rows ...
+        c.t.append(0.1 * k), c.own.append(np.zeros(3)), c.yaw.append(0.0), c.target.append(np.ones(3))
+        c.in_fov.append(1.0), c.detected.append(1.0), c.mode.append("GUIDED"), c.phase.append("follow"), c.tip.append("")
+    c.t.append(0.2)  # ... and the first column of a third
+    tr = obs.trace({})
+    assert len(tr) == 2 and tr.ownship_enu.shape == (2, 3) and len(tr.phase) == 2
+    assert tr.slant_range_m.shape == (2,)
