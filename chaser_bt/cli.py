@@ -153,6 +153,9 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     p.add_argument("--reload-from", type=Path, metavar="FILE",
                    help="retask in flight: each time FILE changes (and settles) its tree, checked first, replaces the "
                         "mission at a safe point (docs/trees.md, \"Retasking\"; default: no file)")
+    p.add_argument("--reload-subtree", metavar="NAME",
+                   help="with --reload-from: FILE's tree NAME (else its main tree) replaces only the subtree NAME of "
+                        "the mission, whose other nodes keep their progress (default: the whole tree)")
     p.add_argument("--camera", metavar="SOURCE", help="video file, stream URL or device index for the on-board camera (default: none)")
     p.add_argument("--camera-size", type=_size, metavar="WxH", help="resize camera frames to this size, px (default: as captured)")
     p.add_argument("--perception", choices=("thread", "inline"), default="thread",
@@ -316,6 +319,7 @@ def _nodes(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     tree = _load_tree(args.tree)
+    _check_reload(args, tree)
     monitor = _groot2_monitor(args, tree)
     try:
         return _fly(args, tree, monitor)
@@ -557,12 +561,27 @@ def _load_scenario(path: Path):
         raise _BadInput(f"{path}: {exc.strerror or exc}") from None
 
 
+def _check_reload(args: argparse.Namespace, tree) -> None:
+    """``--reload-subtree`` names a subtree the mission has, and comes with ``--reload-from``."""
+    from chaser_bt.tree.splice import subtree_ids
+
+    name = args.reload_subtree
+    if name is None:
+        return
+    if args.reload_from is None:
+        raise _BadInput(f"run: --reload-subtree {name}: give the file it is reloaded from with --reload-from FILE")
+    known = subtree_ids(tree)
+    if name not in known:
+        raise _BadInput(f"run: --reload-subtree {name}: {args.tree} has no subtree {name}"
+                        f"{arg.did_you_mean(name, known)}; its subtrees: {', '.join(known) or 'none'}")
+
+
 def _retask_sources(runner, args: argparse.Namespace, resources: dict) -> None:
     """Where retasks come from on ``run``: the watched file and the uplink's ``retask`` commands."""
     from chaser_bt.mission.retask import FileWatcher, RetaskRequest
 
     if args.reload_from is not None:
-        runner.retask_sources.append(FileWatcher(args.reload_from).poll)
+        runner.retask_sources.append(FileWatcher(args.reload_from, subtree=args.reload_subtree).poll)
     uplink = resources.get("uplink")
     if uplink is not None:
         base = Path(args.tree).parent
@@ -572,7 +591,7 @@ def _retask_sources(runner, args: argparse.Namespace, resources: dict) -> None:
             if not taken:
                 return None
             cmd = taken[-1]  # the latest wins; earlier ones in the same poll are superseded
-            return RetaskRequest(cmd.tree.encode("utf-8"), cmd.name, base, "uplink", cmd.sysid)
+            return RetaskRequest(cmd.tree.encode("utf-8"), cmd.name, base, "uplink", cmd.sysid, cmd.subtree)
 
         runner.retask_sources.append(from_uplink)
 

@@ -12,6 +12,9 @@ changes nothing). Exit 2 on a bad argument or key file, 1 when the datagram coul
 ``chaser-bt retask TREE --to HOST:PORT --key FILE --sysid N``: fly TREE instead of the running mission
 (:mod:`chaser_bt.mission.retask`: checked on the aircraft first, taken at a safe point). The tree is
 checked here too before it is sent; its includes are resolved on the aircraft, beside its running tree.
+With ``--subtree NAME`` TREE's tree of that ID (else its main tree) replaces that subtree of the running
+tree only. Here the file must read and hold that tree; whether it fits the running tree (its SubTree
+nodes' remappings, every key read written) is checked on the aircraft, which has that tree.
 """
 
 from __future__ import annotations
@@ -50,6 +53,9 @@ def add_command(subparsers) -> None:
     p.add_argument("--key", required=True, metavar="FILE", help="the uplink's key file (required)")
     p.add_argument("--sysid", required=True, type=positive_int, metavar="N",
                    help="the vehicle's MAVLink system id: another vehicle refuses it (required)")
+    p.add_argument("--subtree", metavar="NAME",
+                   help="replace only this subtree (a tree ID) of the running tree, with TREE's tree NAME or else "
+                        "its main tree; the rest of the mission keeps its progress (default: the whole tree)")
     p.add_argument("--link-id", type=int, default=0, metavar="N", help="this ground station's link id, 0-255 (default 0)")
     p.set_defaults(handler=run_retask)
 
@@ -75,12 +81,16 @@ def run_retask(args: argparse.Namespace) -> int:
     from chaser_bt.vehicle.signing import load_key
 
     path = Path(args.tree)
+    subtree = getattr(args, "subtree", None)
     try:
-        load_tree(path)  # what the aircraft would refuse, refused here first
+        if subtree is None:
+            load_tree(path)  # what the aircraft would refuse, refused here first
+        else:
+            _check_replacement(path, subtree)
         if args.sysid > 255:
             raise ValueError(f"--sysid {args.sysid}: expected 1-255")
         datagram = retask_datagram(StreamSigner(load_key(args.key), args.link_id), path.name,
-                                   path.read_text(encoding="utf-8"), args.sysid)
+                                   path.read_text(encoding="utf-8"), args.sysid, subtree=subtree)
     except TreeError as e:
         print(f"chaser-bt: retask: {str(e).strip().splitlines()[0]}", file=sys.stderr)
         return 2
@@ -91,9 +101,31 @@ def run_retask(args: argparse.Namespace) -> int:
     if problem is not None:
         print(f"chaser-bt: retask: {problem}", file=sys.stderr)
         return 1
-    print(f"retask {path.name}: sent to vehicle {args.sysid} at {args.to} ({len(datagram)} bytes, signed); "
+    what = f"retask {path.name}" + (f" as subtree {subtree}" if subtree is not None else "")
+    print(f"{what}: sent to vehicle {args.sysid} at {args.to} ({len(datagram)} bytes, signed); "
           f"the aircraft's log says whether it was taken")
     return 0
+
+
+def _check_replacement(path: Path, subtree: str) -> None:
+    """A subtree's replacement, as far as it can be checked without the running tree: the file reads
+    (its includes too) and holds a tree ``subtree``, or a main tree.
+
+    Raises:
+        TreeError: the file does not read.
+        ValueError: it has no tree to put in the subtree's place (:func:`chaser_bt.tree.splice.replacement_tree`).
+    """
+    from chaser_bt.tree import TreeError
+    from chaser_bt.tree.documents import read_document
+    from chaser_bt.tree.splice import SpliceError, replacement_tree
+
+    document, problems = read_document(path)
+    if problems:
+        raise TreeError(sorted(problems))
+    try:
+        replacement_tree(document, subtree)
+    except SpliceError as e:
+        raise ValueError(f"{path}: {e}") from None
 
 
 def run_designate(args: argparse.Namespace) -> int:

@@ -13,7 +13,8 @@ ground stream (:mod:`chaser_bt.ground.auth`), around a version-1 JSON message
 =============  ==================================================================================
 ``designate``  ``track_id`` (a radar track id, 0 .. 2^31-1): make that track's object the target
 ``retask``     ``name`` (the tree's file name: ``.xml`` is BT.CPP XML, else YAML), ``tree`` (its
-               text), ``sysid`` (the vehicle it is for): fly this tree instead
+               text), ``sysid`` (the vehicle it is for): fly this tree instead; with ``subtree`` (a
+               tree ID, optional) the file's tree replaces that subtree of the running tree only
                (:mod:`chaser_bt.mission.retask`)
 =============  ==================================================================================
 
@@ -43,12 +44,15 @@ log = logging.getLogger(__name__)
 
 COMMANDS = ("designate", "retask")
 MAX_TRACK_ID = 2**31 - 1
+#: Characters a tree ID may not hold (BehaviorTree.CPP refuses them), so no subtree name has them.
+_NOT_IN_TREE_IDS = frozenset(" \t\n\r<>&\"'/\\:*?|.")
 
 
 @dataclass(frozen=True)
 class GroundCommand:
     """One command the aircraft believed: its ``kind`` and ``seq``; a designation's ``track_id``; a
-    retask's tree ``name``, ``tree`` text and target ``sysid``."""
+    retask's tree ``name``, ``tree`` text, target ``sysid`` and the ``subtree`` it replaces (None: the
+    whole tree)."""
 
     kind: str
     seq: int
@@ -56,6 +60,7 @@ class GroundCommand:
     name: str | None = None
     tree: str | None = None
     sysid: int | None = None
+    subtree: str | None = None
 
 
 def _integer(msg: dict, key: str, lo: int, hi: int) -> int:
@@ -87,7 +92,15 @@ def parse_command(payload: bytes) -> GroundCommand:
         raise ValueError(f"retask: name {name!r}: expected a file name such as chase.yaml")
     if not isinstance(tree, str):
         raise ValueError(f"retask: tree: expected the tree file's text, got {type(tree).__name__}")
-    return GroundCommand(kind, seq, name=name, tree=tree, sysid=_integer(msg, "sysid", 1, 255))
+    subtree = msg.get("subtree")
+    if subtree is not None:
+        _check_subtree(subtree)
+    return GroundCommand(kind, seq, name=name, tree=tree, sysid=_integer(msg, "sysid", 1, 255), subtree=subtree)
+
+
+def _check_subtree(subtree: object) -> None:
+    if not isinstance(subtree, str) or not subtree or any(c in _NOT_IN_TREE_IDS for c in subtree):
+        raise ValueError(f"retask: subtree {subtree!r}: expected a tree ID such as Search")
 
 
 def designate_datagram(signer: StreamSigner, track_id: int, seq: int = 0, unix_time: float | None = None) -> bytes:
@@ -99,15 +112,19 @@ def designate_datagram(signer: StreamSigner, track_id: int, seq: int = 0, unix_t
 
 
 def retask_datagram(signer: StreamSigner, name: str, tree_text: str, sysid: int, seq: int = 0,
-                    unix_time: float | None = None) -> bytes:
-    """The signed datagram that retasks vehicle ``sysid`` with the tree file ``name`` of text ``tree_text``.
+                    unix_time: float | None = None, subtree: str | None = None) -> bytes:
+    """The signed datagram that retasks vehicle ``sysid`` with the tree file ``name`` of text ``tree_text``
+    (with ``subtree``: that subtree of the running tree only; without it the datagram is as it always was).
 
     Raises:
-        ValueError: the tree does not fit one datagram.
+        ValueError: the tree does not fit one datagram, or ``subtree`` is not a tree ID.
     """
     t = time.time() if unix_time is None else unix_time
-    return signer.sign(json_datagram("command", seq, t, {"command": "retask", "name": name, "tree": tree_text,
-                                                         "sysid": int(sysid)}))
+    fields: dict[str, Any] = {"command": "retask", "name": name, "tree": tree_text, "sysid": int(sysid)}
+    if subtree is not None:
+        _check_subtree(subtree)
+        fields["subtree"] = subtree
+    return signer.sign(json_datagram("command", seq, t, fields))
 
 
 @dataclass
@@ -182,6 +199,8 @@ class UplinkReceiver:
                 continue
             self.counters.accepted += 1
             what = f"track {cmd.track_id}" if cmd.kind == "designate" else f"{cmd.name} for vehicle {cmd.sysid}"
+            if cmd.subtree is not None:
+                what += f" (subtree {cmd.subtree})"
             log.info("uplink: %s %s from %s (seq %d)", cmd.kind, what, src, cmd.seq)
             self._queued[cmd.kind].append(cmd)
             out.append(cmd)

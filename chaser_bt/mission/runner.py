@@ -35,8 +35,20 @@ import py_trees
 from chaser_bt.clock import Clock
 from chaser_bt.mission.outcome import PHASE_KEY, FlightWitness, Outcome, Verdict, judge
 from chaser_bt.mission.resources import missing_resources
-from chaser_bt.mission.retask import Retask, RetaskRejected, RetaskRequest, prepare, tree_hash
+from chaser_bt.mission.retask import (
+    Retask,
+    RetaskRejected,
+    RetaskRequest,
+    prepare_subtree,
+    prepare_tree,
+    spliced_hash,
+    tree_hash,
+)
 from chaser_bt.tree import MissionTree, NodeKind
+from chaser_bt.tree.documents import merge_includes, parse_document
+from chaser_bt.tree.model import TreeDocument
+from chaser_bt.tree.node_base import is_active
+from chaser_bt.tree.splice import Splice
 from chaser_bt.vehicle import VehicleError, VehicleLink, VehicleQuiet
 
 __all__ = ["MISSION_TIME_KEY", "VEHICLE_STATE_KEY", "MissionRunner", "RunResult", "RunStatus", "StatusChange"]
@@ -45,6 +57,10 @@ log = logging.getLogger(__name__)
 
 VEHICLE_STATE_KEY = "/vehicle/state"
 MISSION_TIME_KEY = "/mission/time_s"
+
+#: The class attribute of the leaves that command the aircraft (behaviours.base.CommandingBehaviour): a
+#: subtree retask that halts one of them running holds the aircraft.
+_COMMANDING_MARK = "HOVER_ON_HALT"
 
 # Modes in which the mission's own hold (a GUIDED position target, centred sticks) keeps the aircraft.
 _MISSION_HOLD_MODES = ("GUIDED", "STABILIZE", "ALT_HOLD")
@@ -147,7 +163,11 @@ class MissionRunner:
         self._visitors: list[py_trees.visitors.VisitorBase] = []
         self.retask_sources: list[Callable[[], RetaskRequest | None]] = []
         self.retasks: list[Retask] = []
-        self._tree_hash = tree_hash(tree.source.read_bytes()) if tree.source is not None and tree.source.is_file() else ""
+        source = tree.source.read_bytes() if tree.source is not None and tree.source.is_file() else None
+        self._tree_hash = tree_hash(source) if source is not None else ""
+        # What a subtree retask splices into: the running tree's document, parsed from these bytes at the first.
+        self._document: TreeDocument | None = None
+        self._source = (source, tree.source) if source is not None else None
         self._last_status: dict[object, py_trees.common.Status] = {}
         self._changed_last_tick: set = set()
         self._set_up = False
@@ -215,35 +235,64 @@ class MissionRunner:
                 self.retask(request)
 
     def retask(self, request: RetaskRequest) -> Retask:
-        """Check ``request`` against this flight and, if it passes, make its tree the mission.
+        """Check ``request`` against this flight and, if it passes, make its tree the mission, or, with
+        ``request.subtree``, put it in place of that subtree (:meth:`_splice_in`).
 
-        The running tree is halted (its leaves' exit holds), the aircraft held (hover) and the new
-        tree, already set up, ticks from the next tick. A rejected request changes nothing; either
-        way the attempt is logged and kept in :attr:`retasks`. Never raises.
+        A whole tree: the running tree is halted (its leaves' exit holds), the aircraft held (hover)
+        and the new tree, already set up, ticks from the next tick. A rejected request changes
+        nothing; either way the attempt is logged and kept in :attr:`retasks`. Never raises.
         """
         now = self.clock.now()
-        new_hash = tree_hash(request.data)
+        subtree = request.subtree
+        new_hash = tree_hash(request.data) if subtree is None else spliced_hash(self._tree_hash, subtree, request.data)
         try:
-            tree = prepare(request, self.link, self.resources)
-            bt = _BehaviourTree(tree.root)
-            try:
-                bt.setup(link=self.link, clock=self.clock, **self.resources)
-            except Exception as exc:  # a leaf refused this flight (a weights file, a key file, a port)
-                raise RetaskRejected(f"retask {request.name} ({request.origin}): {type(exc).__name__}: "
-                                     f"{str(exc).splitlines()[0] if str(exc) else ''}") from None
+            if subtree is None:
+                tree, document = prepare_tree(request, self.link, self.resources)
+                bt = _BehaviourTree(tree.root)
+                self._set_up_new(request, lambda: bt.setup(link=self.link, clock=self.clock, **self.resources))
+            else:
+                splice = prepare_subtree(request, self.link, self.resources, self.tree, self._running_document())
+                self._set_up_new(request, lambda: self._set_up_sites(splice))
         except RetaskRejected as exc:
-            record = Retask(now, False, request.origin, request.name, self._tree_hash, new_hash, str(exc))
+            record = Retask(now, False, request.origin, request.name, self._tree_hash, new_hash, str(exc), subtree)
             log.warning("%s: the mission goes on unchanged", exc)
         else:
-            self._hand_over(bt, tree)
-            message = f"tree {self._tree_hash or '(text)'} -> {new_hash}, aircraft held at the hand-over"
-            record = Retask(now, True, request.origin, request.name, self._tree_hash, new_hash, message)
-            self._tree_hash = new_hash
+            if subtree is None:
+                self._hand_over(bt, tree)
+                message = f"tree {self._tree_hash or '(text)'} -> {new_hash}, aircraft held at the hand-over"
+            else:
+                document = splice.document
+                message = (f"tree {self._tree_hash or '(text)'} -> {new_hash}, subtree {subtree} replaced by "
+                           f"{request.name} {tree_hash(request.data)}: {self._splice_in(splice)}")
+            record = Retask(now, True, request.origin, request.name, self._tree_hash, new_hash, message, subtree)
+            self._tree_hash, self._document, self._source = new_hash, document, None
             log.info("retask %s (%s) taken: %s", request.name, request.origin, message)
         self.retasks.append(record)
         for listener in self._retask_listeners:
             listener(record)
         return record
+
+    def _running_document(self) -> TreeDocument | None:
+        """The document the running tree was built from, its includes merged (None: built from text)."""
+        if self._document is None and self._source is not None:
+            data, path = self._source
+            self._source = None
+            document, problems = parse_document(data.decode("utf-8", errors="replace"), str(path))
+            merged, more = merge_includes(document, path.parent)
+            self._document = None if problems or more else merged
+        return self._document
+
+    def _set_up_new(self, request: RetaskRequest, setup: Callable[[], object]) -> None:
+        """Run the new leaves' ``setup``; a leaf that refuses this flight rejects the retask."""
+        try:
+            setup()
+        except Exception as exc:  # a leaf refused this flight (a weights file, a key file, a port)
+            raise RetaskRejected(f"{request.label}: {type(exc).__name__}: "
+                                 f"{str(exc).splitlines()[0] if str(exc) else ''}") from None
+
+    def _set_up_sites(self, splice: Splice) -> None:
+        for site in splice.sites:
+            py_trees.trees.setup(site.new, link=self.link, clock=self.clock, **self.resources)
 
     def _hand_over(self, bt: py_trees.trees.BehaviourTree, tree: MissionTree) -> None:
         """Halt the running tree, hold the aircraft, make ``bt`` the mission."""
@@ -252,10 +301,7 @@ class MissionRunner:
         except Exception:
             log.exception("a behaviour raised while being halted for a retask")
         self._record_status_changes(self.clock.now())
-        try:
-            self.link.hover()
-        except Exception as exc:  # the halted leaves' own holds went first; the autopilot's failsafes remain
-            log.error("could not send hover at the retask: %s", exc)
+        self._hold()
         try:
             self._bt.shutdown()
         except Exception:
@@ -264,6 +310,53 @@ class MissionRunner:
         for visitor in self._visitors:
             self._bt.add_visitor(visitor)
         self._last_status = {}
+
+    def _hold(self) -> None:
+        """Send the hover command at a hand-over; never raises."""
+        try:
+            self.link.hover()
+        except Exception as exc:  # the halted leaves' own holds went first; the autopilot's failsafes remain
+            log.error("could not send hover at the retask: %s", exc)
+
+    def _splice_in(self, splice: Splice) -> str:
+        """Put the new subtree in place of every instance of the old one; what happened, in words.
+
+        An instance that is running is halted (its leaves' exit holds) and, if one of its leaves was
+        commanding the aircraft, the aircraft is held (hover); its ``SubTree`` node stays RUNNING, so
+        its parent ticks the new instance from its start on the next tick. One that is not running
+        (not reached yet, or finished) is swapped as it is: the new one runs when its parent next
+        ticks it. The rest of the tree keeps its state.
+        """
+        halted, swapped, commanding = [], [], False
+        for site in splice.sites:
+            if not is_active(site.old):
+                swapped.append(site.path)
+                continue
+            commanding = commanding or any(node.status == py_trees.common.Status.RUNNING and not node.children
+                                           and hasattr(type(node), _COMMANDING_MARK) for node in site.old.iterate())
+            try:
+                site.old.stop(py_trees.common.Status.INVALID)
+            except Exception:
+                log.exception("a behaviour raised while being halted for a retask of subtree %s", splice.name)
+            halted.append(site.path)
+        self._record_status_changes(self.clock.now())
+        if commanding:
+            self._hold()
+        splice.apply()
+        for site in splice.sites:
+            for node in site.old.iterate():
+                self._last_status.pop(node.id, None)
+                try:
+                    node.shutdown()
+                except Exception:
+                    log.exception("a behaviour raised while shutting down for a retask of subtree %s", splice.name)
+        self.tree = splice.tree
+        parts = []
+        if halted:
+            parts.append(f"{', '.join(halted)} halted" + (", aircraft held at the hand-over" if commanding else ""))
+        if swapped:
+            parts.append(f"{', '.join(swapped)} not running, swapped")
+        return "; ".join(parts)
 
     # -- ticking ----------------------------------------------------------------------------
 

@@ -233,7 +233,7 @@ def rehearse(
             while scheduled and sim.time_s >= scheduled[0].at_s:  # between ticks: the retask's safe point
                 due = scheduled.pop(0)
                 runner.retask(RetaskRequest(due.tree.read_bytes(), due.tree.name, due.tree.parent,
-                                            f"scenario at {due.at_s:g} s"))
+                                            f"scenario at {due.at_s:g} s", subtree=due.subtree))
             truth = sim.truth
             scorer.observe(truth)
             safety.observe(sim.time_s, truth, sim.autopilot.mode, sim.autopilot.armed)

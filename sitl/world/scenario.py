@@ -91,10 +91,12 @@ class ScriptedTarget:
 @dataclass(frozen=True)
 class ScheduledRetask:
     """A retask a rehearsal gives the mission at simulated time ``at_s``: fly the tree file ``tree``
-    instead (the simulator ignores it; ``sitl.bench.rehearsal`` offers it to the mission runner)."""
+    instead, or with ``subtree`` put its tree in place of that subtree only (the simulator ignores it;
+    ``sitl.bench.rehearsal`` offers it to the mission runner)."""
 
     at_s: float
     tree: Path
+    subtree: str | None = None
 
 
 @dataclass(frozen=True)
@@ -590,22 +592,26 @@ class _Parser:
         return tuple(sorted(out, key=lambda ev: ev.at_s))
 
     def retasks(self, d: Any) -> tuple[ScheduledRetask, ...]:
-        """``retask: [{at_s, tree}]``: tree files relative to the scenario's folder, existing, in time order."""
+        """``retask: [{at_s, tree, subtree}]``: tree files relative to the scenario's folder, existing, in
+        time order; ``subtree`` (optional) names the subtree of the flying tree the file replaces."""
         if d is None:
             return ()
         if not isinstance(d, list):
-            raise self.fail("retask", "a list of {at_s, tree} entries", d)
+            raise self.fail("retask", "a list of {at_s, tree, subtree} entries", d)
         base = Path(self.source).parent if not self.source.startswith("<") else Path(".")
         out = []
         for i, item in enumerate(d):
             path = f"retask[{i}]"
-            e = self.mapping(item, path, ("at_s", "tree"))
+            e = self.mapping(item, path, ("at_s", "tree", "subtree"))
             tree = e.get("tree")
             if not isinstance(tree, str) or not tree:
                 raise self.fail(f"{path}.tree", "a tree file, relative to the scenario's folder", tree)
             if not (base / tree).is_file():
                 raise self.fail(f"{path}.tree", f"an existing tree file (no {base / tree})", tree)
-            out.append(ScheduledRetask(self.number(e, "at_s", path, None, minimum=0.0), base / tree))
+            subtree = e.get("subtree")
+            if subtree is not None and (not isinstance(subtree, str) or not subtree.strip()):
+                raise self.fail(f"{path}.subtree", "the tree ID of a subtree of the flying tree", subtree)
+            out.append(ScheduledRetask(self.number(e, "at_s", path, None, minimum=0.0), base / tree, subtree))
         return tuple(sorted(out, key=lambda r: r.at_s))
 
     # -- intruders: Phantom-like drones with their own MAVLink (sitl/world/intruders.py) ----------------

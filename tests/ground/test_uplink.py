@@ -9,7 +9,7 @@ import time
 import py_trees
 import pytest
 
-from chaser_bt.ground.auth import StreamSigner
+from chaser_bt.ground.auth import StreamSigner, StreamVerifier
 from chaser_bt.ground.protocol import json_datagram
 from chaser_bt.ground.uplink import GroundCommand, UplinkReceiver, designate_datagram, parse_command, retask_datagram
 
@@ -78,6 +78,29 @@ def test_parse_command_names_the_bad_field():
         parse_command(json.dumps({**retask, "name": "../x.yaml"}).encode())
     with pytest.raises(ValueError, match="sysid 0"):
         parse_command(json.dumps({**retask, "sysid": 0}).encode())
+
+
+def test_a_retask_may_name_a_subtree_and_a_datagram_without_one_is_as_before():
+    signer = StreamSigner(KEY)
+    whole = retask_datagram(signer, "hover.yaml", "version: 1", 1, seq=1, unix_time=5.0)
+    # The datagram a ground station without subtrees sends, byte for byte: no subtree field.
+    assert StreamVerifier(KEY).open(whole) == json_datagram("command", 1, 5.0, {
+        "command": "retask", "name": "hover.yaml", "tree": "version: 1", "sysid": 1})
+    part = retask_datagram(signer, "leg.yaml", "version: 1", 1, seq=2, unix_time=5.0, subtree="Leg")
+    assert json.loads(StreamVerifier(KEY).open(part))["subtree"] == "Leg"
+    rx = UplinkReceiver("127.0.0.1", 0, KEY)
+    _send(rx.address[1], whole, part)
+    _poll(rx, 2)
+    assert rx.take("retask") == [GroundCommand("retask", 1, name="hover.yaml", tree="version: 1", sysid=1),
+                                 GroundCommand("retask", 2, name="leg.yaml", tree="version: 1", sysid=1, subtree="Leg")]
+    rx.close()
+    retask = {"v": 1, "type": "command", "seq": 3, "command": "retask", "name": "leg.yaml", "tree": "x", "sysid": 2}
+    assert parse_command(json.dumps(retask).encode()).subtree is None
+    for bad in ("", 7, "a/b", "Leg two"):
+        with pytest.raises(ValueError, match="subtree"):
+            parse_command(json.dumps({**retask, "subtree": bad}).encode())
+    with pytest.raises(ValueError, match="expected a tree ID"):
+        retask_datagram(signer, "leg.yaml", "version: 1", 1, subtree="../Leg")
 
 
 def test_each_consumer_takes_its_own_kind():
