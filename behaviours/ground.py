@@ -23,6 +23,7 @@ from behaviours.radar import OPERATOR_CONFIRMATION_KEY
 from behaviours.sar import FIND_KEY
 from chaser_bt.find import Find
 from chaser_bt.ground.auth import StreamSigner
+from chaser_bt.ground.designation import designation_summary, take_designations
 from chaser_bt.ground.protocol import Box, cue_message, estimate_message, find_message, status_message, tracks_message
 from chaser_bt.ground.sender import GroundSender
 from chaser_bt.ground.uplink import UplinkReceiver
@@ -156,10 +157,13 @@ class StreamToGround(VehicleBehaviour):
 @register_behaviour
 class GroundDesignation(VehicleBehaviour):
     """The operator's designations from the ground: each signed ``designate`` command the ``uplink=``
-    resource (a :class:`~chaser_bt.ground.uplink.UplinkReceiver`, ``chaser-bt run --uplink``) believed
-    writes its radar track id to ``operator_track`` (the radar behaviours validate it, or switch the
-    chase to it). Always SUCCESS: without the resource the uplink is off, and nothing the network
-    sends can fail the mission. Several nodes may share the one uplink (whichever ticks reads it).
+    resource (a :class:`~chaser_bt.ground.uplink.UplinkReceiver`, ``chaser-bt run --uplink``) believed,
+    and each signed MAVLink designation from a ground station the vehicle link believed
+    (:mod:`chaser_bt.vehicle.designation`), writes its radar track id to ``operator_track`` (the radar
+    behaviours validate it, or switch the chase to it), in the order they came
+    (:func:`~chaser_bt.ground.designation.take_designations`). Always SUCCESS: without the resource
+    the uplink is off, and nothing the network sends can fail the mission. Several nodes may share
+    the sources (whichever ticks reads them).
     """
 
     NODE_KIND = NodeKind.ACTION
@@ -174,11 +178,7 @@ class GroundDesignation(VehicleBehaviour):
         self.uplink: UplinkReceiver | None = uplink if isinstance(uplink, UplinkReceiver) else None
 
     def update(self) -> Status:
-        if self.uplink is None:
-            self.feedback_message = "uplink off (chaser-bt run --uplink)"
-            return Status.SUCCESS
-        for cmd in self.uplink.take("designate"):
-            self._set_output("operator_track", cmd.track_id)
-        c = self.uplink.counters
-        self.feedback_message = f"uplink: {c.accepted} command(s), {sum(c.as_dict().values()) - c.accepted} dropped"
+        for designation in take_designations(self.uplink, self.link):
+            self._set_output("operator_track", designation.track_id)
+        self.feedback_message = designation_summary(self.uplink, self.link)
         return Status.SUCCESS

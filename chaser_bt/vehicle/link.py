@@ -21,6 +21,11 @@ or a real aircraft; only the connection string changes (DESIGN §5). Its rules:
   (:mod:`chaser_bt.vehicle.signing`): unsigned or wrongly signed ones claiming to be the vehicle
   are dropped and counted in :attr:`VehicleLink.signing`. Other systems' messages (an intruder's
   own telemetry) are not ours to authenticate; they reach listeners as before and never the state.
+- With a key (or ``LinkConfig.designation_unsigned`` on the bench) it also takes the operator's
+  target designations from a ground station (:mod:`chaser_bt.vehicle.designation`): it answers as
+  component ``designation_compid`` of the vehicle's system, sends that component's HEARTBEAT so the
+  autopilot forwards commands for it here, acks each command it believes, and hands the accepted
+  ones out by :meth:`~VehicleLink.take_designations`.
 - A command counts as accepted only when ArduCopter acked it *and*, where telemetry can show it,
   telemetry shows it (mode in HEARTBEAT.custom_mode, armed flag): ArduPilot acks first. Telemetry
   that shows it without an ack (the ack was lost) counts too.
@@ -56,6 +61,14 @@ from chaser_bt.geo import GeoPoint, LocalFrame, enu_to_ned, enu_yaw_to_heading, 
 from chaser_bt.vehicle.cadence import Cadence
 from chaser_bt.vehicle.commands import Command, CommandTracker, Setpoint
 from chaser_bt.vehicle.connection import PipeConnection, mavutil, open_connection
+from chaser_bt.vehicle.designation import (
+    COMMAND_MESSAGES,
+    DEFAULT_COMPID,
+    DesignationInbox,
+    Judgement,
+    MavlinkDesignation,
+    authenticity,
+)
 from chaser_bt.vehicle.envelope import CommandEnvelope, UnsafeCommand
 from chaser_bt.vehicle.errors import CommandRejected, LinkTimeout, VehicleError, VehicleQuiet, VehicleUnreachable
 from chaser_bt.vehicle.pipe import PipeEnd
@@ -137,11 +150,18 @@ class LinkConfig:
     # Heartbeats and RC-override resends also keep to the vehicle's time (its time_boot_ms), so a
     # simulator at speed-up sees them at their rate in its own time (chaser_bt.vehicle.cadence).
     timers_on_vehicle_time: bool = False
+    # The operator's designations from a ground station over MAVLink (chaser_bt.vehicle.designation):
+    # the component the link answers them as (None: not listened for), and whether unsigned ones are
+    # believed (bench use only). Without a signing key and without that, nothing is listened for.
+    designation_compid: int | None = DEFAULT_COMPID
+    designation_unsigned: bool = False
 
     def __post_init__(self) -> None:
         for name in ("gcs_sysid", "gcs_compid"):
             if not 1 <= getattr(self, name) <= 255:
                 raise ValueError(f"LinkConfig.{name} = {getattr(self, name)}: expected 1..255")
+        if self.designation_compid is not None and not 1 <= self.designation_compid <= 255:
+            raise ValueError(f"LinkConfig.designation_compid = {self.designation_compid}: expected 1..255 or None")
         if self.target_sysid is not None and not 1 <= self.target_sysid <= 255:
             raise ValueError(f"LinkConfig.target_sysid = {self.target_sysid}: expected 1..255 or None")
         for name in ("heartbeat_period_s", "ack_timeout_s", "quiet_timeout_s", "connect_timeout_s",
@@ -217,6 +237,12 @@ class VehicleLink:
             # The Unix time makes the first timestamp newer than any this key signed before.
             self.signing = SigningGate(config.signing, signing_timestamp(time.time()))
             self.signing.attach(conn.mav)
+        # Designations over MAVLink, answered as our own component of the vehicle's system (it also
+        # sends that component's heartbeat, so ArduPilot learns to forward them to this port).
+        self.designations: DesignationInbox | None = None
+        if config.designation_compid is not None and (self.signing is not None or config.designation_unsigned):
+            self.designations = DesignationInbox(config.designation_compid, allow_unsigned=config.designation_unsigned)
+        self._companion: Any = None  # the encoder speaking as that component, once the vehicle is known
 
     # ----------------------------------------------------------------------------- opening
     @classmethod
@@ -280,6 +306,11 @@ class VehicleLink:
         finally:
             for _, on_poll in list(self._wire_taps):
                 on_poll(started)
+
+    def take_designations(self) -> list[MavlinkDesignation]:
+        """The operator's designations from a ground station believed since the last call, oldest
+        first (:mod:`chaser_bt.vehicle.designation`); always empty while :attr:`designations` is off."""
+        return [] if self.designations is None else self.designations.take()
 
     def now(self) -> float:
         """The link's own clock (the injected ``monotonic``), on which every timer of the link runs."""
@@ -621,6 +652,8 @@ class VehicleLink:
             self.counters.bad_packets += 1
             return 0
         self.counters.received[mtype] += 1
+        if mtype in COMMAND_MESSAGES and self._designation(msg):
+            return 1
         src, comp = msg.get_srcSystem(), msg.get_srcComponent()
         if self.target_compid is None:
             if not (mtype == "HEARTBEAT" and _is_autopilot(msg) and self.target_sysid in (None, src)):
@@ -664,6 +697,32 @@ class VehicleLink:
                 log.info("ENU frame origin = home %s", self.state.home)
         return 1
 
+    def _designation(self, msg: Any) -> bool:
+        """Judge a command for our designation component and answer it; False: not one for us."""
+        if self.designations is None or self.target_sysid is None:
+            return False
+        judgement = self.designations.receive(msg, sysid=self.target_sysid, auth=authenticity(msg, self.signing))
+        if judgement is None:
+            return False
+        if judgement.ack is not None:
+            self._send_designation_ack(msg, judgement)
+        return True
+
+    def _send_designation_ack(self, msg: Any, judgement: Judgement) -> None:
+        """COMMAND_ACK from our designation component to whoever sent ``msg`` (GCS_Common.cpp's fields)."""
+        self._companion_mav().command_ack_send(msg.command, judgement.ack, 0, judgement.bad_param,
+                                               msg.get_srcSystem(), msg.get_srcComponent())
+
+    def _companion_mav(self) -> Any:
+        """The encoder that speaks as our designation component of the vehicle's system (signed as the link)."""
+        if self._companion is None:
+            mav = mavlink.MAVLink(self.conn, srcSystem=self.target_sysid, srcComponent=self.config.designation_compid)
+            if self.signing is not None:
+                self.signing.attach(mav)
+            mav.set_send_callback(self._notify_sent)
+            self._companion = mav
+        return self._companion
+
     def _claims_vehicle(self, msg: Any, mtype: str) -> bool:
         """From our vehicle's system, or an autopilot heartbeat that could make itself our vehicle."""
         src = msg.get_srcSystem()
@@ -695,6 +754,9 @@ class VehicleLink:
         if self._heartbeat.fire(now, vehicle_t):
             self.conn.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
                                          mavlink.MAV_STATE_ACTIVE)
+            if self.designations is not None and self.target_compid is not None:
+                self._companion_mav().heartbeat_send(mavlink.MAV_TYPE_ONBOARD_CONTROLLER, mavlink.MAV_AUTOPILOT_INVALID,
+                                                     0, 0, mavlink.MAV_STATE_ACTIVE)
         if self.target_compid is None:
             return
         if self._streams_checked_at is None or _due(now, self._streams_checked_at + _STREAM_CHECK_S):

@@ -11,6 +11,8 @@ As in ArduPilot's GCS_MAVLink, what answers a request (COMMAND_ACK, PARAM_VALUE 
 MESSAGE_INTERVAL, the mission protocol, a requested message, the banner on request) goes to the channel
 that asked; SET_MESSAGE_INTERVAL and REQUEST_DATA_STREAM set that channel's rates only; STATUSTEXT,
 HOME_POSITION on change, PARAM_VALUE after a PARAM_SET and the boot banner go to every channel.
+What one channel sends for another system or component (a ground station's command to a companion
+computer on another port) is forwarded the way ArduPilot's MAVLink_routing does (:mod:`sitl.vehicle.routing`).
 
 With :meth:`MavlinkEndpoint.enable_signing` the endpoint signs everything it sends and, like
 ArduCopter with a signing key stored, acts only on messages that are correctly signed or are of a
@@ -51,6 +53,7 @@ from chaser_bt.vehicle.signing import SigningConfig, SigningGate, signing_timest
 from sitl.vehicle.autopilot import FORCE_ARM_MAGIC, Autopilot  # noqa: E402
 from sitl.vehicle.mavftp import MavFtpServer  # noqa: E402
 from sitl.vehicle.mission_protocol import MissionProtocol  # noqa: E402
+from sitl.vehicle.routing import Router  # noqa: E402
 from sitl.vehicle.telemetry import (  # noqa: E402
     FRAME_CLASSES,
     StreamScheduler,
@@ -94,8 +97,9 @@ class EndpointStats:
     """Counters for diagnostics: what arrived, what was dropped and why."""
 
     messages_in: int = 0  # acted on (with signing on: signed, or allowed unsigned)
+    forwarded: int = 0  # resent on another channel (sitl.vehicle.routing), counted per channel
     bad_packets: int = 0  # garbage bytes runs and packets with a bad CRC or header
-    not_for_us: int = 0  # targeted at another system or component
+    not_for_us: int = 0  # targeted at another system or component (or a loop of our own)
     commands: int = 0
     packets_out: int = 0
 
@@ -134,6 +138,7 @@ class MavlinkEndpoint:
         self._target: Channel | None = None  # the channel being answered; None = every channel
         self.sysid = int(autopilot.params.get("SYSID_THISMAV"))
         self.stats = EndpointStats()
+        self.router: Router[Channel] = Router(self.sysid, COMPID)
         self._last_home = None
         self._boot_banner_due = True  # sent at boot, to every channel
         if mav_type is None:
@@ -233,7 +238,16 @@ class MavlinkEndpoint:
                 self.stats.bad_packets += 1
                 continue
             if self.signing is not None and not self.signing.admit(msg):
-                continue  # unsigned or wrongly signed: counted by the gate, never acted on
+                continue  # unsigned or wrongly signed: counted by the gate, never acted on or forwarded
+            local, forward_to = self.router.check_and_forward(msg, channel, self.channels())
+            if forward_to:
+                packet = bytes(msg.get_msgbuf())  # as it came, signature and all (_mavlink_resend_uart)
+                for other in forward_to:
+                    other.out += packet
+                self.stats.forwarded += len(forward_to)
+            if not local:
+                self.stats.not_for_us += 1
+                continue
             self.stats.messages_in += 1
             handler = self._handlers.get(kind)
             if handler is not None:
