@@ -1,11 +1,12 @@
 # The two set-up commands: `make demo` and `make test`. Both build .venv when it is missing.
-# `make docs` builds the documentation site into site/ (mkdocs.yml).
+# `make docs` builds the documentation site into site/ (mkdocs.yml); `make results` writes docs/results.md from
+# the record of measurements (benchmarks/results/*.jsonl, appended by any benchmark run with --record).
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-fast bench docs clean
+.PHONY: demo test test-fast bench results docs clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -25,6 +26,10 @@ test-fast: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_sitl.py
+
+# The results page: generated from benchmarks/results/*.jsonl, never edited (tools/results_page.py).
+results: $(STAMP)
+	$(BIN)/python tools/results_page.py
 
 # Strict: a broken link, a missing anchor or page, or a reference that does not resolve fails the build.
 # The reference pages (CLI, node catalogue, scenario keys, API) are generated during the build (tools/docs_site.py).

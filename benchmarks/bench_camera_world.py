@@ -9,7 +9,6 @@ Run: .venv/bin/python benchmarks/bench_camera_world.py [--frames 120] [--repeats
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import statistics
 import sys
@@ -25,6 +24,19 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from chaser_bt.vision.camera import CameraModel  # noqa: E402
 from sitl.world.camera.renderer import Renderer, TargetPose, attitude_from_velocity  # noqa: E402
 from sitl.world.camera.world import FAMILIES, WorldSpec, build_world  # noqa: E402
+from record import Benchmark, add_record_flag, emit  # noqa: E402
+
+BENCHMARK = Benchmark(
+    "camera_world", __doc__,
+    against="built-in simulator's camera renderer (sitl/world/camera), one core",
+    units={
+        "width_px": "px", "height_px": "px", "threads": "OpenCV threads",
+        "build_s_*": "s to build the camera world",
+        "fps_*": "frames rendered per wall second (median of the repeats)",
+        "ratio_*": "the family's frames/s over the plain field's, in the same run",
+    },
+    headline=("fps_plain", "fps_meadow", "fps_suburb", "ratio_suburb"),
+)
 
 
 def _fps(renderer: Renderer, lighting, frames: int) -> float:
@@ -45,6 +57,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=120)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--seed", type=int, default=1)
+    add_record_flag(parser)
     args = parser.parse_args()
     cv2.setNumThreads(1)
     camera = CameraModel(width_px=640, height_px=480)
@@ -59,7 +72,7 @@ def main() -> None:
                                                        for _ in range(args.repeats)), 1)
     for family in FAMILIES:
         out[f"ratio_{family}"] = round(out[f"fps_{family}"] / out["fps_plain"], 3)
-    print(json.dumps(out))
+    emit(out, BENCHMARK, args.record)
 
 
 if __name__ == "__main__":

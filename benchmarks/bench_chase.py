@@ -24,7 +24,6 @@ Run: .venv/bin/python benchmarks/bench_chase.py [--quick] [--seeds 1-50] [--work
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import os
 import sys
@@ -35,10 +34,41 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from record import Benchmark, add_record_flag, emit  # noqa: E402
+
 CHASE = (ROOT / "trees/chase.yaml", ROOT / "sitl/scenarios/chase.yaml")
 SAR = (ROOT / "trees/sar.yaml", ROOT / "sitl/scenarios/sar.yaml")
 HARD = ROOT / "sitl/scenarios/hard"
 KEYS = ("t_airborne_s", "t_acquire_s", "target_in_fov_frac", "detection_frac", "radar_assoc_frac")
+BENCHMARK = Benchmark(
+    "chase", __doc__,
+    against="built-in simulator: rehearsal campaigns with radar, rendered camera and shipped detector "
+            "(sitl/scenarios/chase.yaml, sar.yaml, hard/)",
+    units={
+        "seeds": "seeds per scenario",
+        "success_frac": "share of runs that succeed (ended well, acquired, >= 20 s in view after acquisition)",
+        "t_airborne_s_*": "s, first validated radar track to take-off altitude (paper 15.48; sitl/bench/scoring.py)",
+        "t_acquire_s_*": "s, airborne to the first estimate within 10 m or 3 deg of the intruder (paper 4.95)",
+        "target_in_fov_frac_*": "share of autonomous ticks, acquisition to end of follow, with the intruder in the "
+                                "camera's frustum (paper 0.91)",
+        "detection_frac_*": "share of camera frames in that span whose box matches the intruder (paper 0.66)",
+        "radar_assoc_frac_*": "share of 1 s windows in which the correlator held the chaser's own track (paper 0.917)",
+        "*_p25_p75": "quartiles over runs [p25, p75]",
+        "*_median": "median over runs",
+        "sar_found_frac": "share of search-and-rescue runs that found the person",
+        "sar_reason": "why sar_found_frac is null",
+        "campaign_runs_per_min": "chase runs flown per wall-clock minute",
+        "workers": "campaign worker processes",
+        "quick": "runs capped at 120 s simulated",
+        "hard.*.runs": "runs", "hard.*.success_frac": "share of runs that succeed (target >= 0.9)",
+        "hard.*.custody_frac_median": "share of time the designated target is held (target >= 0.95)",
+        "hard.*.target_switches": "target switches, summed over runs (target 0)",
+        "hard.*.target_in_fov_frac_median": "share of follow time in view (target >= 0.90)",
+        "hard.*.detection_frac_median": "share of in-view frames detected (target > 0.66)",
+    },
+    headline=("success_frac", "t_acquire_s_median", "target_in_fov_frac_median", "detection_frac_median",
+              "sar_found_frac", "campaign_runs_per_min"),
+)
 
 
 def _campaign(tree: Path, scenario: Path, seeds: list[int], out: Path, args):
@@ -61,6 +91,7 @@ def main() -> None:
     parser.add_argument("--no-camera", action="store_true")
     parser.add_argument("--no-sar", action="store_true", help="skip the search-and-rescue campaign")
     parser.add_argument("--hard", action="store_true", help="also the hard-scenario campaign (sitl/scenarios/hard/)")
+    add_record_flag(parser)
     args = parser.parse_args()
     os.environ.setdefault("MAVLINK20", "1")
     logging.basicConfig(level=logging.WARNING)
@@ -97,7 +128,7 @@ def main() -> None:
         line["workers"] = args.workers
         line["outcomes"] = agg["outcomes"]
         line["quick"] = args.quick
-    print(json.dumps(line))
+    emit(line, BENCHMARK, args.record)
 
 
 if __name__ == "__main__":

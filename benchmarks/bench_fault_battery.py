@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import logging
 import os
 import sys
@@ -50,11 +49,26 @@ sys.path.insert(0, str(ROOT))
 from sitl.bench.rehearsal import AutopilotChoice, rehearse  # noqa: E402
 from sitl.vehicle.setup import Fault, GroundStationEvent  # noqa: E402
 from sitl.world.scenario import Scenario, load_scenario  # noqa: E402
+from record import Benchmark, add_record_flag, emit  # noqa: E402
 
 TREE = ROOT / "trees" / "patrol.yaml"
 SCENARIO = ROOT / "sitl" / "scenarios" / "patrol.yaml"
 FAULT_AT_S = 62.0  # the built-in's clock, as tests/e2e/test_fault_outcomes.py: the first leg, at 20 m
 log = logging.getLogger("bench_fault_battery")
+BENCHMARK = Benchmark(
+    "fault_battery", __doc__,
+    against="built-in simulator and ArduCopter SITL, the same cases on both (an autopilot not flown says why)",
+    units={
+        "fault_at_s": "s on each autopilot's clock when the fault strikes",
+        "cases.*.agree": "whether the two autopilots' mission_outcome agree (– when one was not flown)",
+        "mission_outcome": "how the mission ended", "final_state": "the vehicle's state at the end",
+        "landed_dist_m": "m from home where it landed", "t_safe_s": "s from the fault to a safe state",
+        "sim_time_s": "simulated s", "texts": "the autopilot's failsafe texts the mission saw",
+        "disagree": "cases whose autopilots disagree",
+    },
+    headline=("disagree", "cases.no_fault.builtin.mission_outcome", "cases.rc_loss.builtin.mission_outcome",
+              "cases.link_loss.builtin.mission_outcome"),
+)
 
 
 @dataclass(frozen=True)
@@ -124,6 +138,7 @@ def main() -> None:
     parser.add_argument("--cases", default=",".join(c.name for c in CASES),
                         help=f"comma-separated cases (default all: {','.join(c.name for c in CASES)})")
     parser.add_argument("--seed", type=int, default=1, help="the scenario's seed (default 1)")
+    add_record_flag(parser)
     args = parser.parse_args()
     os.environ.setdefault("MAVLINK20", "1")
     logging.basicConfig(level=logging.WARNING, stream=sys.stderr, format="%(name)s: %(message)s")
@@ -159,9 +174,8 @@ def main() -> None:
         outcomes = [entry.get(a, {}).get("mission_outcome") for a in ("builtin", "ardupilot")]
         entry["agree"] = outcomes[0] == outcomes[1] if None not in outcomes else None
         results[case.name] = entry
-    print(json.dumps({"tree": "patrol", "seed": args.seed,
-                      "fault_at_s": {a: fault_at_s(a, base) for a in autopilots},
-                      "cases": results, "disagree": [n for n, e in results.items() if e["agree"] is False]}))
+    emit({"tree": "patrol", "seed": args.seed, "fault_at_s": {a: fault_at_s(a, base) for a in autopilots},
+          "cases": results, "disagree": [n for n, e in results.items() if e["agree"] is False]}, BENCHMARK, args.record)
 
 
 if __name__ == "__main__":

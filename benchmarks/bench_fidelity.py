@@ -72,7 +72,37 @@ from typing import Protocol
 import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from record import Benchmark, add_record_flag, emit  # noqa: E402
+
 log = logging.getLogger("bench_fidelity")
+BENCHMARK = Benchmark(
+    "fidelity", __doc__,
+    against="ArduCopter SITL (the real ArduCopter binary; on our rotor bodies for the flights in our world), "
+            "the built-in simulator flying the same trees",
+    units={
+        "speedup": "simulated s per wall s, both backends", "seed": "the built-in's seed, and the chase's",
+        "airframe": "the built-in's airframe over TCP",
+        "arm_to_liftoff_s": "s, arm acknowledged to 0.5 m above the arming height",
+        "climb_s": "s, lift-off to within 1 m of 20 m",
+        "leg?_s": "s, the leg's first position target to within 2 m of its waypoint",
+        "corner?_overshoot_m": "m, the largest distance from the next leg's line while flying it",
+        "home_overshoot_m": "m, the swing past home after the last leg",
+        "*_start_speed_mps": "m/s when RTL or LAND came",
+        "*_to_descent_s": "s, RTL or LAND acknowledged to sinking at 0.3 m/s",
+        "descent_s": "s, descent start to touchdown (sinking under 0.3 m/s again)",
+        "touchdown_to_disarm_s": "s, touchdown to disarmed",
+        "landing_error_m": "m, horizontal distance from the arming point",
+        "into_wind_leg_slowdown_s": "s, the third (into-wind) leg's time less the calm flight's",
+        "t_airborne_s": "s, first validated radar track to take-off altitude (the chase)",
+        "t_acquire_s": "s, airborne to the first estimate on the intruder (the chase; shown, not judged)",
+        "follow_range_err_m": "m, median slant-range error while following (the chase)",
+        "follow_elevation_err_deg": "deg, median elevation error while following (the chase)",
+        "compare": "[built-in, ArduCopter, built-in / ArduCopter] per case.figure",
+        "gaps": "figures that miss their target (timings within 10 %, overshoot within 1 m)",
+    },
+    headline=("gaps", "compare.patrol.climb_s", "compare.patrol.leg1_s", "compare.chase.t_airborne_s"),
+)
 
 HOME = (42.5, -71.6, 80.0, 0.0)  # lat, lon, alt AMSL, heading: ArduPilot SITL's default home
 ALT_M = 20.0
@@ -520,6 +550,7 @@ def main() -> None:
     parser.add_argument("--airframe", choices=sorted(AIRFRAMES), default="quad",
                         help="the built-in's airframe: quad, matched to ArduPilot's SITL quad (default), or s1000, its own")
     parser.add_argument("--keep", type=Path, default=None, help="keep the logs (MCAP) in this folder (default: a temporary one)")
+    add_record_flag(parser)
     args = parser.parse_args()
     logging.basicConfig(level=logging.INFO, stream=sys.stderr, format="%(message)s")
     folder = args.ardupilot or Path(os.environ.get("CHASER_BT_ARDUPILOT", ROOT.parent / "shared" / "ardupilot"))
@@ -549,8 +580,8 @@ def main() -> None:
                     results[backend.name][case.name] = {"error": str(e)}
     add_slowdowns(results)
     table, gaps = compare(results)
-    print(json.dumps({"speedup": args.speedup, "seed": args.seed, "airframe": args.airframe, **results,
-                      "compare": table, "gaps": gaps}))
+    emit({"speedup": args.speedup, "seed": args.seed, "airframe": args.airframe, **results, "compare": table, "gaps": gaps},
+         BENCHMARK, args.record)
 
 
 if __name__ == "__main__":

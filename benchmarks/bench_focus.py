@@ -14,7 +14,6 @@ Prints one JSON line. Run: .venv/bin/python benchmarks/bench_focus.py [--quick]
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from pathlib import Path
@@ -30,8 +29,22 @@ from chaser_bt.vision.detector.inference import Detector  # noqa: E402
 from chaser_bt.vision.focus import FocusWindow  # noqa: E402
 from sitl.world.camera.renderer import Lighting, Renderer, TargetPose, attitude_from_velocity  # noqa: E402
 from sitl.world.camera.scene import make_ground  # noqa: E402
+from record import Benchmark, add_record_flag, emit  # noqa: E402
 
 ZOOMS = (0.0, 2.0, 3.0)  # 0: the whole frame
+BENCHMARK = Benchmark(
+    "focus", __doc__,
+    against="built-in simulator's rendered S1000 views (640 x 480), the shipped detector on one thread",
+    units={
+        "views_per_range": "rendered views per range",
+        "acq_*_found_*": "share of views with a box on the target (_whole: the whole frame; _x2, _x3: the focus window)",
+        "acq_*_false_per_view_*": "boxes off the target per view",
+        "follow_*_centre_err_px_median_*": "px, median box-centre error",
+        "follow_*_width_ratio_median_*": "median of the box's width over the target's true box width",
+    },
+    headline=("acq_250m_found_whole", "acq_250m_found_x3", "acq_250m_false_per_view_x3",
+              "follow_25m_centre_err_px_median_whole"),
+)
 
 
 def _window(centre: tuple[float, float], zoom: float, size: tuple[int, int]) -> FocusWindow:
@@ -111,12 +124,13 @@ def follow(det: Detector, n: int, rng: np.random.Generator) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="8 views per range instead of 30")
+    add_record_flag(parser)
     args = parser.parse_args()
     torch.set_num_threads(1)
     n = 8 if args.quick else 30
     det = Detector(image_size=416, threads=1)
     rng = np.random.default_rng(0)
-    print(json.dumps({"name": "focus", "views_per_range": n, **acquisition(det, n, rng), **follow(det, n, rng)}))
+    emit({"name": "focus", "views_per_range": n, **acquisition(det, n, rng), **follow(det, n, rng)}, BENCHMARK, args.record)
 
 
 if __name__ == "__main__":

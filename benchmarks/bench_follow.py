@@ -34,11 +34,36 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from sitl.bench.follow_eval import VISION_FOLLOW_PORTS, TRAJECTORY_PARAMS, fly_follow, intruder_scenario  # noqa: E402
+from record import Benchmark, add_record_flag, emit  # noqa: E402
 
 HEADLINE = "roll_ff"  # the controller as we recommend flying it; "paper" is table 1's three loops
 CONFIGS = {"paper": "", "roll": "use_roll: true", "feed_forward": "feed_forward: true",
            "roll_ff": "use_roll: true, feed_forward: true"}
 VISION_PORTS = VISION_FOLLOW_PORTS
+BENCHMARK = Benchmark(
+    "follow", __doc__,
+    against="built-in simulator: one intruder per seed over five trajectory kinds, scored from its truth "
+            "(sitl/bench/follow_eval.py); vision flights with the rendered camera and the shipped detector",
+    units={
+        "seeds": "seeds of the telemetry-range flights", "follow_s_per_seed": "s of scored follow per seed",
+        "headline_config": "the configuration the headline figures are of",
+        "in_fov_frac_*": "share of follow time with the target in the camera's field of view (paper 0.91)",
+        "in_fov_frac_telemetry_range": "share of follow time in view, telemetry range, median over seeds (paper 0.91)",
+        "in_fov_frac_telemetry_range_mean": "the same, mean over seeds",
+        "in_fov_frac_telemetry_range_paper_loops": "the same with the paper's three loops (table 1)",
+        "in_fov_frac_vision_range": "share of follow time in view, no telemetry: range from the camera, median over seeds",
+        "*vision_range_err_m_p50": "m, median over seeds of each seed's median |vision range - truth|",
+        "*range_err_m_p50": "m, median slant-range error from the set-point",
+        "*elev_err_deg_p50": "deg, median elevation error from the set-point",
+        "by_trajectory": "share of follow time in view per trajectory kind (mean over its seeds)",
+        "*tracking_frac_median": "share of samples with a fresh camera estimate (median over seeds)",
+        "configs": "each controller configuration's telemetry-range figures",
+        "vision": "the vision-range flights",
+        "wall_s": "s of wall time, all flights",
+    },
+    headline=("in_fov_frac_telemetry_range", "in_fov_frac_telemetry_range_paper_loops", "in_fov_frac_vision_range",
+              "vision_range_err_m_p50"),
+)
 
 
 def fly_one(args: tuple) -> dict:
@@ -94,6 +119,7 @@ def main() -> None:
                     help=f"CVFollow ports of the vision flights (default {VISION_PORTS!r}; '' = CVFollow's defaults)")
     ap.add_argument("--vision-only", action="store_true", help="only the vision-range flights")
     ap.add_argument("--no-vision", action="store_true", help="only the telemetry-range flights")
+    add_record_flag(ap)
     args = ap.parse_args()
     seeds, duration, configs = (5, 60.0, ("paper", "roll_ff")) if args.quick else (args.seeds, 150.0, tuple(CONFIGS))
     try:
@@ -111,7 +137,7 @@ def main() -> None:
         vision = {"seeds": vseeds, "follow_s_per_seed": vdur, "camera": list(camera), "ports": args.vision_ports,
                   **run_config(args.vision_ports, vseeds, vdur, source="vision", camera=camera, jobs=args.jobs)}
     head = results.get(HEADLINE, {})
-    print(json.dumps({
+    emit({
         "name": "follow",
         "seeds": seeds if results else None,
         "follow_s_per_seed": duration if results else None,
@@ -127,7 +153,7 @@ def main() -> None:
         "configs": results,
         "vision": vision,
         "wall_s": round(time.perf_counter() - t0, 1),
-    }))
+    }, BENCHMARK, args.record)
 
 
 if __name__ == "__main__":

@@ -11,7 +11,6 @@ Run: .venv/bin/python benchmarks/bench_radar.py [--quick]   (--quick: 5 seeds, u
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from pathlib import Path
@@ -21,9 +20,35 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from chaser_bt.radar.correlator import make_correlator  # noqa: E402
+from record import Benchmark, add_record_flag, emit  # noqa: E402
 from chaser_bt.radar.recording import calibrate_recording  # noqa: E402
 from sitl.bench.radar_trials import (calibration_test_flight, correlation_test_flight, handheld_guess,  # noqa: E402
                                 score_correlator, to_recording)
+
+BENCHMARK = Benchmark(
+    "radar", __doc__,
+    against="built-in simulator: the paper's correlation test and calibration flights, simulated "
+            "(sitl/bench/radar_trials.py)",
+    units={
+        "seeds": "correlation-test seeds (500 s of flight each)",
+        "alg1_assoc_frac": "share of 1 s windows in coverage associated with the ownship's track, the paper's Algorithm 1",
+        "alg1_wrong_frac": "share of 1 s windows associated with another track, Algorithm 1",
+        "ours_assoc_frac": "share of 1 s windows associated with the ownship's track, the gated correlator",
+        "ours_wrong_frac": "share of 1 s windows associated with another track, the gated correlator",
+        "ours_min_seed_assoc_frac": "the gated correlator's worst seed",
+        "*_x_realtime": "flight seconds scored per wall second (5 Hz scans)",
+        "flight_s": "simulated seconds of correlation-test flight, all seeds",
+        "calib3_resid_m": "m, residual std [e, n, u], the paper's 3-parameter fit on the longest track (median of seeds)",
+        "calib_best_resid_m": "m, residual std [e, n, u], the 3-parameter fit on the best track (median of seeds)",
+        "calib6_resid_m": "m, residual std [e, n, u], the 6-parameter fit (median of seeds)",
+        "*_pose_err": "the fitted radar pose against the truth (median of seeds)",
+        "pos_m": "m, position error",
+        "yaw_deg": "deg, yaw error",
+        "calib_seeds": "calibration-flight seeds",
+        "calib_tracks_median": "radar track ids per calibration flight (median)",
+    },
+    headline=("ours_assoc_frac", "ours_wrong_frac", "alg1_assoc_frac", "calib6_pose_err.pos_m", "correlator_x_realtime"),
+)
 
 
 def correlation(seeds: int) -> dict:
@@ -80,12 +105,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="5 correlation seeds, 3 calibration seeds")
     parser.add_argument("--seeds", type=int, default=None, help="correlation seeds (default 20, quick 5)")
+    add_record_flag(parser)
     args = parser.parse_args()
     seeds = args.seeds or (5 if args.quick else 20)
     out = {"name": "radar", "seeds": seeds}
     out.update(correlation(seeds))
     out.update(calibration(3 if args.quick else 10))
-    print(json.dumps({k: (round(v, 4) if isinstance(v, float) else v) for k, v in out.items()}))
+    emit({k: (round(v, 4) if isinstance(v, float) else v) for k, v in out.items()}, BENCHMARK, args.record)
 
 
 if __name__ == "__main__":

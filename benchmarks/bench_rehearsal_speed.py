@@ -35,13 +35,41 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import os
 import statistics
+import sys
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from record import Benchmark, add_record_flag, emit  # noqa: E402
+
+BENCHMARK = Benchmark(
+    "rehearsal_speed", "Camera-on rehearsal speed: the chase in its default camera world, real-time factor.",
+    against="built-in simulator: trees/chase.yaml rehearsed with every sensor on (radar, rendered camera, shipped detector)",
+    units={
+        "seed": "the scenario's seed", "sim_time_s": "simulated s per run",
+        "*realtime_factor*": "simulated s per wall s",
+        "realtime_factor_median": "simulated s per wall s, render process (as chaser-bt rehearse flies), median of runs",
+        "with_setup_realtime_factor_median": "the same, the sensors' set-up counted",
+        "in_process_realtime_factor_median": "simulated s per wall s, the camera drawn in-process",
+        "reference_realtime_factor_median": "simulated s per wall s, every frame rendered whole inside its tick",
+        "speedup_render_process": "realtime factor with the render process over in-process, back to back",
+        "speedup_vs_reference": "realtime factor over the reference's, back to back",
+        "tick_ms_median": "ms, median tick wall time",
+        "parts_ms": "ms of wall time per camera frame, by part (median of runs)",
+        "render_wait": "ms per frame, the tick waiting for the render process's frame",
+        "render_child": "ms per frame, the render process drawing",
+        "detector": "ms per frame, the detector's calls", "trackers": "ms per frame, the tracker bank",
+        "frames": "camera frames per run",
+        "wall_time_s": "s of wall time, the flight", "setup_s": "s of wall time, the sensors' set-up",
+        "opencv_threads": "OpenCV's threads", "detector_threads": "the detector's threads in each mode",
+        "load_avg_1m": "the machine's 1-minute load average at the end (the machine is shared)",
+    },
+    headline=("realtime_factor_median", "in_process_realtime_factor_median", "speedup_render_process",
+              "speedup_vs_reference", "load_avg_1m"),
+)
 
 
 class PartTimer:
@@ -107,6 +135,7 @@ def main() -> None:
     parser.add_argument("--no-reference", action="store_true", help="skip the whole-frame reference runs")
     parser.add_argument("--opencv-threads", type=int, default=0,
                         help="OpenCV's threads (1: a campaign worker's setting; 0: OpenCV's default)")
+    add_record_flag(parser)
     args = parser.parse_args()
     if args.opencv_threads > 0:
         import cv2
@@ -157,7 +186,7 @@ def main() -> None:
     out["opencv_threads"] = args.opencv_threads or "default"
     out["detector_threads"] = {"render_process": detector_threads(beside_renderer=True), "in_process": detector_threads()}
     out["load_avg_1m"] = round(os.getloadavg()[0], 2)
-    print(json.dumps(out))
+    emit(out, BENCHMARK, args.record)
 
 
 if __name__ == "__main__":

@@ -14,7 +14,6 @@ Run: .venv/bin/python benchmarks/bench_rotor_body.py
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -23,8 +22,20 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from sitl.vehicle.json_backend import ServoPacket  # noqa: E402
 from sitl.vehicle.rotor_body import AIRFRAMES, RotorBody  # noqa: E402
+from record import Benchmark, add_record_flag, emit  # noqa: E402
 
 RATE_HZ = 400
+BENCHMARK = Benchmark(
+    "rotor_body", __doc__,
+    against="the motor-level rotor body alone (sitl/vehicle/rotor_body.py), no socket, one core",
+    units={
+        "rate_hz": "physics steps per simulated s ArduCopter's JSON backend asks for",
+        "*_steps_per_s": "bare RotorBody.step calls per wall s (best of the repeats)",
+        "*_frames_per_s": "RotorBody.physics plus encoding the reply, per wall s (best of the repeats)",
+        "*_x_realtime_at_400hz": "frames per second over 400: the most speed-up the body allows",
+    },
+    headline=("s1000_x_realtime_at_400hz", "quad_x_realtime_at_400hz"),
+)
 
 
 def _pwm(body: RotorBody) -> tuple[int, ...]:
@@ -56,6 +67,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=20000)
     ap.add_argument("--repeats", type=int, default=3)
+    add_record_flag(ap)
     args = ap.parse_args()
     out: dict[str, object] = {"name": "rotor_body", "rate_hz": RATE_HZ}
     for name in AIRFRAMES:
@@ -63,7 +75,7 @@ def main() -> None:
         frames = best_rate(name, args.steps, args.repeats, frames=True)
         out[f"{name}_frames_per_s"] = round(frames)
         out[f"{name}_x_realtime_at_400hz"] = round(frames / RATE_HZ, 1)
-    print(json.dumps(out))
+    emit(out, BENCHMARK, args.record)
 
 
 if __name__ == "__main__":

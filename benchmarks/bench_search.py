@@ -14,7 +14,6 @@ Run: .venv/bin/python benchmarks/bench_search.py [--quick]
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -29,6 +28,24 @@ from chaser_bt.cue import TargetCue  # noqa: E402
 from chaser_bt.search import (BeliefGrid, GaussianDynamics, GridSpec, MaxBeliefPlanner, RecedingHorizonPlanner,  # noqa: E402
                               SearchSession, SensorModel, level_attitude)
 from chaser_bt.vision import CameraModel  # noqa: E402
+from record import Benchmark, add_record_flag, emit  # noqa: E402
+
+BENCHMARK = Benchmark(
+    "search", __doc__,
+    against="the planner on this machine's CPU, over beliefs from kinematic searches and from searches flown in the "
+            "built-in simulator (_sitl); time to acquire from kinematic searches (benchmarks/search_experiment.py)",
+    units={
+        "grid": "belief grid cells [x, y, z]",
+        "plan_ms*": "ms of wall time per exact RHC plan, by horizon h (median; _p95, _max)",
+        "plan_cpu_ms*": "ms of process CPU time per plan, by horizon h (median; _max): the cost on an unshared machine",
+        "planning_states": "planning states from kinematic searches", "planning_states_sitl": "planning states from the simulator",
+        "belief_update_ms": "ms per belief update (dynamics and observation)",
+        "seeds": "searches per planner for the time to acquire",
+        "t_acquire_s_*_median": "s from the radar's loss to acquisition, median (180 s when never acquired)",
+        "acquired_frac_*": "share of searches that acquired within 180 s",
+    },
+    headline=("plan_ms.5", "plan_cpu_ms.5", "plan_ms_sitl.5", "t_acquire_s_rhc_median", "t_acquire_s_maxbelief_median"),
+)
 
 
 def planning_states(n_runs: int):
@@ -88,6 +105,7 @@ def plan_times(states, h: int) -> tuple[list[float], list[float]]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer planning states and seeds")
+    add_record_flag(parser)
     args = parser.parse_args()
     spec, sensor, states = planning_states(2 if args.quick else 6)
     sitl = sitl_states(1 if args.quick else 2, 60.0)
@@ -117,14 +135,14 @@ def main() -> None:
     rhc = [fly("rhc", "open", s, horizon=5, gamma=0.9).t_acquire_s for s in range(seeds)]
     mx = [fly("max", "open", s).t_acquire_s for s in range(seeds)]
     censor = lambda xs: [180.0 if x is None else x for x in xs]  # noqa: E731
-    print(json.dumps({
+    emit({
         "name": "search", "grid": list(spec.shape), **figures,
         "planning_states": len(states), "planning_states_sitl": len(sitl), "belief_update_ms": round(update_ms, 3),
         "seeds": seeds,
         "t_acquire_s_rhc_median": float(np.median(censor(rhc))), "t_acquire_s_maxbelief_median": float(np.median(censor(mx))),
         "acquired_frac_rhc": round(float(np.mean([x is not None for x in rhc])), 3),
         "acquired_frac_maxbelief": round(float(np.mean([x is not None for x in mx])), 3),
-    }))
+    }, BENCHMARK, args.record)
 
 
 if __name__ == "__main__":

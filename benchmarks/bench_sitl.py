@@ -18,12 +18,31 @@ Run: .venv/bin/python benchmarks/bench_sitl.py
 from __future__ import annotations
 
 import argparse
-import json
 import os
+import sys
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from record import Benchmark, add_record_flag, emit  # noqa: E402
+
+BENCHMARK = Benchmark(
+    "sitl", __doc__,
+    against="built-in simulator: the patrol (trees/patrol.yaml, sitl/scenarios/patrol.yaml), no camera",
+    units={
+        "realtime_factor": "simulated s per wall s, the patrol rehearsal (best of the repeats)",
+        "what": "what realtime_factor measures",
+        "tick_ms_median": "ms, median wall time of one tree tick",
+        "sim_time_s": "simulated s of the best run", "wall_time_s": "wall s of the best run",
+        "outcome": "how the best run ended",
+        "*_all": "every run's figure",
+        "simulator_realtime_factor": "simulated s per wall s, the simulator alone (best of the repeats)",
+        "simulator_what": "what simulator_realtime_factor measures",
+        "simulator_sim_time_s": "simulated s of the simulator-alone square",
+    },
+    headline=("realtime_factor", "tick_ms_median", "simulator_realtime_factor"),
+)
 PATROL_SCENARIO = ROOT / "sitl/scenarios/patrol.yaml"
 SQUARE_ENU = ((100.0, 0.0, 20.0), (100.0, 100.0, 20.0), (0.0, 100.0, 20.0), (0.0, 0.0, 20.0))
 _GUIDED, _RTL = 4, 6  # ArduCopter mode numbers
@@ -68,6 +87,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--repeats", type=int, default=3, help="report the best of N runs (the machine is shared)")
+    add_record_flag(parser)
     args = parser.parse_args()
     os.environ.setdefault("MAVLINK20", "1")
     from sitl.bench.rehearsal import rehearse
@@ -76,7 +96,7 @@ def main() -> None:
     best = max(runs, key=lambda r: r.realtime_factor)
     alone = [simulator_alone(args.seed) for _ in range(args.repeats)]
     alone_factors = [round(sim_s / wall_s, 1) for sim_s, wall_s in alone]
-    print(json.dumps({
+    emit({
         "name": "sitl",
         "realtime_factor": best.realtime_factor,
         "what": "patrol rehearsal: simulator + mission tree lock-step over encoded MAVLink, sim s per wall s",
@@ -89,7 +109,7 @@ def main() -> None:
         "simulator_what": "simulator alone flying the square by direct autopilot commands, telemetry encoded to one port",
         "simulator_sim_time_s": round(alone[0][0], 3),
         "simulator_realtime_factor_all": alone_factors,
-    }))
+    }, BENCHMARK, args.record)
 
 
 if __name__ == "__main__":

@@ -21,8 +21,8 @@ Prints one JSON line. Usage: python benchmarks/bench_tick_jitter.py [--seconds 1
 from __future__ import annotations
 
 import argparse
-import json
 import os
+import sys
 import time
 from dataclasses import dataclass
 
@@ -41,7 +41,27 @@ from chaser_bt.vision.perception import PerceptionWorker
 from chaser_bt.vision.pipeline import CameraSensor, PipelineConfig, VisionPipeline
 from sitl.bench.camera_sequences import follow_sequence
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from record import Benchmark, add_record_flag, emit  # noqa: E402
+
 FPS = 30.0
+BENCHMARK = Benchmark(
+    "tick_jitter", "Tick-period jitter with the detector running: the camera pipeline inline vs in its own thread.",
+    against="a wall clock on this machine: replayed rendered frames, the shipped detector, a stand-in vehicle (no MAVLink)",
+    units={
+        "seconds": "s of counted ticking per rate and mode", "backend": "the detector's backend",
+        "*_mean_ms": "ms, mean period", "*_std_ms": "ms, period standard deviation",
+        "*_jitter_p95": "p95 of |period - nominal| / nominal (target < 0.10 threaded)",
+        "*_jitter_max": "max of |period - nominal| / nominal",
+        "ticks": "ticks counted", "estimate_share": "share of ticks that wrote an estimate",
+        "age_ms_*": "ms, the estimate's age at the tick's end (mean, p95)",
+        "tick_ms_median": "ms, median tick duration", "frames_processed": "frames the perception thread processed",
+        "load_avg_1m": "the machine's 1-minute load average at the end (the machine is shared)",
+        "target_met": "threaded command jitter p95 < 0.10 at 5 and 10 Hz",
+    },
+    headline=("thread_5hz.command_jitter_p95", "thread_10hz.command_jitter_p95", "inline_10hz.command_jitter_p95",
+              "target_met", "load_avg_1m"),
+)
 TREE = """version: 1
 trees:
   Jitter:
@@ -144,6 +164,7 @@ def main() -> None:
     parser.add_argument("--warmup", type=float, default=1.0, help="ticking before the counted seconds, s (default 1)")
     parser.add_argument("--frames", type=int, default=90, help="frames rendered and replayed in a loop (default 90)")
     parser.add_argument("--seed", type=int, default=1, help="follow sequence seed (default 1)")
+    add_record_flag(parser)
     args = parser.parse_args()
     os.environ.setdefault("MAVLINK20", "1")
     cv2.setNumThreads(1)
@@ -157,7 +178,7 @@ def main() -> None:
             out[f"{mode}_{rate:g}hz"] = run(mode, rate, args.seconds, args.warmup, views, detector)
     out["load_avg_1m"] = round(os.getloadavg()[0], 2)
     out["target_met"] = all(out[f"thread_{r}hz"]["command_jitter_p95"] < 0.10 for r in (5, 10))
-    print(json.dumps(out))
+    emit(out, BENCHMARK, args.record)
 
 
 if __name__ == "__main__":

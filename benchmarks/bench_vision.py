@@ -56,6 +56,30 @@ from sitl.world.camera.renderer import Lighting, Renderer, TargetPose, attitude_
 from sitl.world.camera.scene import make_ground
 from sitl.bench.camera_sequences import follow_sequence
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from record import Benchmark, add_record_flag, emit  # noqa: E402
+
+BENCHMARK = Benchmark(
+    "vision", __doc__,
+    against="the built-in simulator's rendered held-out sets and follow sequence, drones and people drawn over "
+            "scikit-image's photographs, and Halmstad real footage (with --halmstad; its keys null without it)",
+    units={
+        "ap50_*": "11-point interpolated AP@0.5 (VOC 2007), averaged over classes",
+        "p_*": "precision at confidence 0.25", "r_*": "recall at confidence 0.25", "f1_*": "F1 at confidence 0.25",
+        "iou_*": "mean IoU of true positives",
+        "fps_*": "frames/s, single-threaded, at the input size in the key",
+        "real_heldout_images": "images of the Halmstad held-out third (every 10th frame)",
+        "pipeline_hz": "follow-sequence frames processed per wall s by the pipeline (detector every 3rd frame)",
+        "bearing_err_deg_p95_correct_box": "deg, p95 bearing error at the box centre, frames with a right box (IoU >= 0.5)",
+        "bearing_err_deg_p95": "deg, p95 bearing error at the box centre, every frame with an estimate",
+        "correct_box_share": "share of labelled frames whose reported box is right (IoU >= 0.5)",
+        "range_rel_err_median_bbox_only": "median |range from the box alone - truth| / truth, on detection frames",
+        "range_rel_err_median": "median |estimated range - truth| / truth",
+        "render_fps_640": "frames/s rendered at 640 x 480, one OpenCV thread",
+    },
+    headline=("ap50_416", "ap50_416_real_heldout", "ap50_416_cross", "fps_416", "pipeline_hz", "bearing_err_deg_p95_correct_box"),
+)
+
 
 def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
     return math.degrees(math.atan2(np.linalg.norm(np.cross(a, b)), float(np.dot(a, b))))
@@ -256,6 +280,7 @@ def main() -> None:
                     help="person detector weights (default: the shipped ones)")
     ap.add_argument("--halmstad", default=os.environ.get("CHASER_BT_HALMSTAD", ""), metavar="DIR",
                     help="the Halmstad drone-detection dataset's folder, for the *_real_heldout keys (default $CHASER_BT_HALMSTAD)")
+    add_record_flag(ap)
     args = ap.parse_args()
     torch.set_num_threads(1)
     cv2.setNumThreads(1)
@@ -274,7 +299,7 @@ def main() -> None:
         figures.update({f"ap50_416{v}": round(m416.ap50, 4), f"ap50_832{v}": round(m832.ap50, 4), f"iou_416{v}": round(m416.iou, 4),
                         f"p_416{v}": round(m416.precision, 4), f"r_416{v}": round(m416.recall, 4), f"f1_416{v}": round(m416.f1, 4),
                         f"fps_416{v}": round(fps416, 1), f"fps_832{v}": round(fps832, 1)})
-    print(json.dumps({
+    emit({
         "name": "vision",
         **figures,
         **domains,
@@ -288,7 +313,7 @@ def main() -> None:
         "range_rel_err_median_bbox_only": round(fol["range_rel_err_median_bbox_only"], 4),
         "render_fps_640": round(render_fps(n_render), 1),
         **person,
-    }))
+    }, BENCHMARK, args.record)
     # Diagnostics beside the figures, on stderr.
     print(json.dumps({"estimate_share": round(fol["estimate_share"], 4),
                       "projection_only_bearing_err_deg_p95": round(fol["projection_only_bearing_err_deg_p95"], 3),

@@ -9,7 +9,6 @@ docs/img/search_belief_gain.png. Run: .venv/bin/python benchmarks/search_belief_
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -17,8 +16,21 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from search_experiment import DT, fly  # noqa: E402
+from record import Benchmark, add_record_flag, emit  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
+BENCHMARK = Benchmark(
+    "search_belief_gain", __doc__,
+    against="kinematic searches (benchmarks/search_experiment.py): the planners and belief of chaser_bt.search, "
+            "a kinematic chaser and target",
+    units={
+        "seeds": "searches per configuration", "duration_s": "s per search",
+        "mean_gain": "mean belief gain per look over the run",
+        "p_detect_cumulative": "mean cumulative detection probability at the end, by the belief",
+    },
+    headline=("max-belief.mean_gain", "RHC h=5 g=0.9.mean_gain", "max-belief.p_detect_cumulative",
+              "RHC h=5 g=0.9.p_detect_cumulative"),
+)
 
 
 def configs():
@@ -33,6 +45,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--duration", type=float, default=120.0)
     parser.add_argument("--quick", action="store_true")
+    add_record_flag(parser)
     args = parser.parse_args()
     seeds, duration = (2, 60.0) if args.quick else (args.seeds, args.duration)
     out: dict = {"name": "search_belief_gain", "seeds": seeds, "duration_s": duration}
@@ -42,7 +55,7 @@ def main() -> None:
         series[label] = runs.mean(axis=0)
         cum = 1.0 - np.prod(1.0 - runs, axis=1)  # P(detected at least once), by the belief
         out[label] = {"mean_gain": round(float(runs.mean()), 5), "p_detect_cumulative": round(float(cum.mean()), 4)}
-    print(json.dumps(out))
+    emit(out, BENCHMARK, args.record)
 
     import matplotlib
 

@@ -10,7 +10,6 @@ Run: .venv/bin/python benchmarks/search_open_question.py [--seeds 30] [--quick]
 from __future__ import annotations
 
 import argparse
-import json
 import multiprocessing
 import sys
 from pathlib import Path
@@ -19,6 +18,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from search_experiment import fly  # noqa: E402
+from record import Benchmark, add_record_flag, emit  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIOS = {
@@ -27,6 +27,21 @@ SCENARIOS = {
     "road": "road grid (target on roads only), road-constrained dynamics",
 }
 PLANNERS = {"maxbelief": ("max", 0, 0.0), "rhc_h3": ("rhc", 3, 0.9), "rhc_h5": ("rhc", 5, 0.9)}
+BENCHMARK = Benchmark(
+    "search_open_question", __doc__,
+    against="kinematic searches (benchmarks/search_experiment.py) in open airspace, among buildings and on roads",
+    units={
+        "seeds": "searches per scenario and planner", "duration_s": "s per search",
+        "t_acquire_median_s": "s, median time to acquire (duration when never acquired)",
+        "t_acquire_mean_s": "s, mean time to acquire (duration when never acquired)",
+        "acquired_frac": "share of searches that acquired",
+        "median_diff_s": "s, median of RHC's time less max-belief's, paired by seed",
+        "rhc_faster_frac": "share of seeds RHC acquired sooner", "rhc_slower_frac": "share of seeds RHC acquired later",
+        "wilcoxon_p": "paired Wilcoxon signed-rank p-value, RHC against max-belief",
+    },
+    headline=("open.rhc_h5_vs_maxbelief.median_diff_s", "buildings.rhc_h5_vs_maxbelief.median_diff_s",
+              "road.rhc_h5_vs_maxbelief.median_diff_s", "road.rhc_h5_vs_maxbelief.wilcoxon_p"),
+)
 
 
 def main() -> None:
@@ -35,6 +50,7 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=180.0)
     parser.add_argument("--quick", action="store_true", help="6 seeds, 90 s (a smoke run, not the answer)")
     parser.add_argument("--workers", type=int, default=2, help="processes (runs are independent)")
+    add_record_flag(parser)
     args = parser.parse_args()
     seeds, duration = (6, 90.0) if args.quick else (args.seeds, args.duration)
     from scipy.stats import wilcoxon
@@ -62,7 +78,7 @@ def main() -> None:
             results[f"{scen}.{label}_vs_maxbelief"] = {
                 "median_diff_s": float(np.median(d)), "rhc_faster_frac": round(float((d < 0).mean()), 3),
                 "rhc_slower_frac": round(float((d > 0).mean()), 3), "wilcoxon_p": round(p, 4)}
-    print(json.dumps(results))
+    emit(results, BENCHMARK, args.record)
     plot(curves, duration, seeds, ROOT / "docs/img/search_open_question.png")
 
 

@@ -12,8 +12,9 @@ Run: .venv/bin/python benchmarks/search_sitl_belief_gain.py [--quick] [--seeds N
 from __future__ import annotations
 
 import argparse
-import json
 import logging
+import os
+import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -21,8 +22,26 @@ import numpy as np
 
 from sitl.bench.search_trial import SearchConfig, SearchTrial, run_trial
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from record import Benchmark, add_record_flag, emit  # noqa: E402
+
 ROOT = Path(__file__).resolve().parent.parent
 BIN_S = 1.0
+BENCHMARK = Benchmark(
+    "search_sitl_belief_gain", __doc__,
+    against="built-in simulator: the paper's search-only test flown by the mission tree over MAVLink "
+            "(sitl/bench/search_trial.py), camera detection off",
+    units={
+        "seeds": "runs per configuration", "search_s": "s of search per run",
+        "configs": "per planner configuration",
+        "runs": "runs that searched the whole time", "mean_gain": "mean belief gain per look",
+        "detected_*": "mean cumulative detection probability by then (30 s, 60 s, the end), by the belief",
+        "first_in_view_s_median": "s, median time until the target is first in the camera's view",
+        "in_view_never": "runs in which it never was", "in_view_frac": "share of ticks with the target in view",
+        "tick_ms_median": "ms, median tick wall time", "tick_ms_p95": "ms, p95 tick wall time",
+    },
+    headline=("configs.max-belief.detected_end", "configs.max-belief.tick_ms_p95"),
+)
 
 
 def configs(quick: bool) -> list[SearchConfig]:
@@ -67,6 +86,7 @@ def main() -> None:
     parser.add_argument("--search-s", type=float, default=120.0)
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--quick", action="store_true", help="2 seeds, 60 s, h = 1, 3, 5")
+    add_record_flag(parser)
     args = parser.parse_args()
     logging.basicConfig(level=logging.WARNING)
     seeds, search_s = (2, 60.0) if args.quick else (args.seeds, args.search_s)
@@ -102,7 +122,7 @@ def main() -> None:
             "tick_ms_median": round(float(np.nanmedian(ticks)), 2),
             "tick_ms_p95": round(float(np.nanpercentile(ticks, 95)), 2),
         }
-    print(json.dumps(out, ensure_ascii=False))
+    emit(out, BENCHMARK, args.record, ensure_ascii=False)
     plot(gain_series, det_series, seeds, search_s, ROOT / "docs/img/search_sitl_belief_gain.png")
 
 

@@ -9,6 +9,10 @@ pages in memory on every build; nothing generated is ever written into docs/ or 
 - ``reference/scenario-keys.md``: the scenario format, ``sitl/scenarios/README.md`` as it stands;
 - ``reference/api/*.md``: one page per package, each a mkdocstrings directive that renders its docstrings.
 
+One page lives in docs/ and is still made on every build: ``results.md``, the measured results, which
+``tools/results_page.py`` writes from the record of measurements (``benchmarks/results/*.jsonl``); the build
+serves it as the record makes it now, whatever the committed copy says (:func:`results_page`).
+
 The hook also rewrites links from docs/ to repository files outside docs/ (``../trees/chase.yaml``), which
 MkDocs cannot serve: see :func:`on_page_markdown`. ``python tools/docs_site.py DIR`` writes the generated
 pages into DIR, to read them without building the site.
@@ -18,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib.util
 import os
 import posixpath
 import re
@@ -26,6 +31,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO_README = ROOT / "sitl" / "scenarios" / "README.md"
+RESULTS_PAGE = "results.md"  # committed in docs/, made again from benchmarks/results/ on every build
 
 # The API reference: (page, package, what it is), in the order the navigation lists them.
 API_PACKAGES = (
@@ -137,6 +143,16 @@ def api_pages() -> dict[str, str]:
     return pages
 
 
+def results_page(repo_base: str | None = None) -> str:
+    """docs/results.md as the record of measurements makes it now (tools/results_page.py), links made servable."""
+    spec = importlib.util.spec_from_file_location("results_page", ROOT / "tools" / "results_page.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclasses look their module up
+    spec.loader.exec_module(module)
+    docs = ROOT / "docs"
+    return rewrite_links(module.render(module.load()), docs, RESULTS_PAGE, docs, repo_base)
+
+
 def pages(config=None) -> dict[str, str]:
     """Every generated page, by its path under the site's docs folder (``config``: the MkDocs config)."""
     return {
@@ -211,6 +227,10 @@ def on_files(files, config):
         if files.get_file_from_path(uri) is not None:
             raise RuntimeError(f"docs/{uri} exists, but the site generates it: remove docs/{uri}")
         files.append(File.generated(config, uri, content=content))
+    committed = files.get_file_from_path(RESULTS_PAGE)
+    if committed is not None:
+        files.remove(committed)
+    files.append(File.generated(config, RESULTS_PAGE, content=results_page(_repo_base(config))))
     return files
 
 
