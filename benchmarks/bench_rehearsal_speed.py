@@ -1,4 +1,4 @@
-"""Camera-on rehearsal speed (issue 19): the chase in its default camera world, real-time factor.
+"""Camera-on rehearsal speed: the chase in its default camera world, real-time factor.
 
 Flies trees/chase.yaml on sitl/scenarios/chase.yaml (the ``any`` camera world: seed 1 is farmland)
 ``--repeats`` times as ``chaser-bt rehearse`` flies it: the camera a frame behind the tick, drawn in

@@ -1,4 +1,4 @@
-"""Tick-period jitter with the detector running (issue 19): the camera pipeline inline vs in its own thread.
+"""Tick-period jitter with the detector running: the camera pipeline inline vs in its own thread.
 
 A :class:`~chaser_bt.mission.runner.MissionRunner` on a wall clock ticks a small tree (VisionPipeline,
 then TargetInView) at 5 and 10 Hz, ``--seconds`` each after a ``--warmup``, in the loop :meth:`MissionRunner.run` uses
@@ -106,6 +106,9 @@ class _StillLink:
 
     def hover(self) -> None:
         pass
+
+    def add_listener(self, **listeners) -> None:
+        """Nothing is ever received or sent: no listener is ever called."""
 
 
 def _stats(times: list[float], period: float) -> dict:
