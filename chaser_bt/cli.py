@@ -20,12 +20,15 @@ import signal
 import sys
 import threading
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 from chaser_bt import cli_args as arg
 from chaser_bt.cli_args import ChaserParser
 from chaser_bt.log.commands import add_recording_arguments
 from chaser_bt.log.groot2.commands import add_groot2_arguments, start_hook
+
+if TYPE_CHECKING:
+    from chaser_bt.vehicle import LinkConfig
 
 __all__ = ["main"]
 
@@ -168,6 +171,14 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                    help="refuse to fly unless the vehicle's GCS and battery failsafes, fence and RTL_ALT are set "
                         "(they are read at connect and warned about either way)")
     _signing_arguments(p)
+    p.add_argument("--designation-compid", type=arg.designation_compid, default=arg.DEFAULT_DESIGNATION_COMPID,
+                   metavar="N", help="answer the operator's MAVLink target designations (docs/ground.md) as component "
+                                     "N (2-255) of the vehicle's system; 0 or off: do not listen. They are listened "
+                                     "for only with --signing-key or --designation-unsigned (default "
+                                     f"{arg.DEFAULT_DESIGNATION_COMPID}, MAV_COMP_ID_ONBOARD_COMPUTER)")
+    p.add_argument("--designation-unsigned", action="store_true",
+                   help="bench only: believe UNSIGNED MAVLink designations too, so anyone on the link can change the "
+                        "chase's target (warned at start; default: only those signed with --signing-key's key)")
     add_recording_arguments(p)
     add_groot2_arguments(p)
 
@@ -320,6 +331,7 @@ def _nodes(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace) -> int:
     tree = _load_tree(args.tree)
     _check_reload(args, tree)
+    _check_designation(args)
     monitor = _groot2_monitor(args, tree)
     try:
         return _fly(args, tree, monitor)
@@ -332,17 +344,14 @@ def _fly(args: argparse.Namespace, tree, monitor) -> int:
     from chaser_bt.clock import FunctionClock, WallClock
     from chaser_bt.mission.flight_sensors import FlightSensorError, check_sensors, close_flight_sensors
     from chaser_bt.mission.runner import MissionRunner, RunStatus
-    from chaser_bt.vehicle import LinkConfig, VehicleError, VehicleLink
+    from chaser_bt.vehicle import VehicleError, VehicleLink
 
     try:  # before connecting: a tree that needs a sensor it was not given never reaches the vehicle
         check_sensors(tree, _sensor_options(args))
     except FlightSensorError as exc:
         raise _BadInput(f"{args.tree}: {exc}") from None
     hook = _recording_hook(args)
-    from chaser_bt.geo import GeoPoint
-
-    config = LinkConfig(signing=_signing(args), origin=None if args.origin is None else GeoPoint(*args.origin),
-                        timers_on_vehicle_time=args.clock == "vehicle")
+    config = _link_config(args)
     try:
         link = VehicleLink.connect(args.connect, config)
     except ValueError as exc:  # a malformed connection string
@@ -397,6 +406,27 @@ def _fly(args: argparse.Namespace, tree, monitor) -> int:
         print("chaser-bt: run: the vehicle did not answer our commands; if it requires MAVLink 2 signing "
               "(`chaser-bt sitl --signing-key FILE` does), pass the same --signing-key", file=sys.stderr)
     return verdict.exit_code  # 0 only for "completed" (docs/run.md lists the others)
+
+
+def _link_config(args: argparse.Namespace) -> LinkConfig:
+    """The vehicle link's settings from ``run``'s options (a bad key file is bad input)."""
+    from chaser_bt.geo import GeoPoint
+    from chaser_bt.vehicle import LinkConfig
+
+    return LinkConfig(signing=_signing(args), origin=None if args.origin is None else GeoPoint(*args.origin),
+                      timers_on_vehicle_time=args.clock == "vehicle", designation_compid=args.designation_compid,
+                      designation_unsigned=args.designation_unsigned)
+
+
+def _check_designation(args: argparse.Namespace) -> None:
+    """``--designation-unsigned`` needs MAVLink designation on; said loudly at start, before anything connects."""
+    if not args.designation_unsigned:
+        return
+    if args.designation_compid is None:
+        raise _BadInput("run: --designation-unsigned: MAVLink designation is off (--designation-compid off); "
+                        "give one or the other")
+    print("chaser-bt: run: WARNING: --designation-unsigned: UNSIGNED MAVLink designations are believed: anyone "
+          "on the link can change the chase's target (bench use only; never fly with it)", file=sys.stderr)
 
 
 def _rehearse(args: argparse.Namespace) -> int:
@@ -577,7 +607,9 @@ def _check_reload(args: argparse.Namespace, tree) -> None:
 
 
 def _retask_sources(runner, args: argparse.Namespace, resources: dict) -> None:
-    """Where retasks come from on ``run``: the watched file and the uplink's ``retask`` commands."""
+    """Where retasks come from on ``run``: the watched file and the uplink's ``retask`` and
+    ``replace_subtree`` commands."""
+    from chaser_bt.ground.uplink import RETASK_COMMANDS
     from chaser_bt.mission.retask import FileWatcher, RetaskRequest
 
     if args.reload_from is not None:
@@ -587,10 +619,10 @@ def _retask_sources(runner, args: argparse.Namespace, resources: dict) -> None:
         base = Path(args.tree).parent
 
         def from_uplink() -> RetaskRequest | None:
-            taken = uplink.take("retask")
+            taken = uplink.take(*RETASK_COMMANDS)
             if not taken:
                 return None
-            cmd = taken[-1]  # the latest wins; earlier ones in the same poll are superseded
+            cmd = taken[-1]  # the latest of either kind wins; earlier ones in the same poll are superseded
             return RetaskRequest(cmd.tree.encode("utf-8"), cmd.name, base, "uplink", cmd.sysid, cmd.subtree)
 
         runner.retask_sources.append(from_uplink)

@@ -21,6 +21,7 @@ from chaser_bt.shipped import NotShipped, resolve_scenario, resolve_tree
 __all__ = [
     "PROG", "ChaserParser", "did_you_mean", "seed", "positive_float", "non_negative_float", "positive_int",
     "non_negative_int", "port", "listen_port", "groot2_port", "tick_rate", "host_port", "connection_string",
+    "DEFAULT_DESIGNATION_COMPID", "designation_compid",
     "geodetic_point", "file_problem", "input_file", "tree_file", "scenario_file", "output_file", "output_dir",
     "add_verbose_everywhere", "AUTOPILOTS", "add_autopilot_arguments",
 ]
@@ -151,6 +152,32 @@ def connection_string(text: str) -> str:
         if sep and number.isascii() and number.isdigit() and not (len(number) <= 5 and 1 <= int(number) <= 65535):
             raise argparse.ArgumentTypeError(f"{text}: port {number} out of range (expected 1-65535)")
     return text
+
+
+#: The component MAVLink designations are answered as: chaser_bt.vehicle.designation.DEFAULT_COMPID,
+#: MAV_COMP_ID_ONBOARD_COMPUTER (not imported here: that module loads pymavlink).
+DEFAULT_DESIGNATION_COMPID = 191
+
+
+def designation_compid(text: str) -> int | None:
+    """``--designation-compid``: a MAVLink component id 2-255, or ``0``/``off`` (None: not listened for).
+
+    1 is refused: it is the autopilot's own component, whose commands the link would then answer.
+    """
+    if text.strip().lower() in ("off", "0"):
+        return None
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a component id in 2-255, or 0 or off (not listened for), "
+                                         f"got {text!r}") from None
+    if value == 1:
+        raise argparse.ArgumentTypeError("1 is the autopilot's component (MAV_COMP_ID_AUTOPILOT1): the link would "
+                                         f"answer commands meant for it; expected 2-255 (default "
+                                         f"{DEFAULT_DESIGNATION_COMPID}), or 0 or off")
+    if not 2 <= value <= 255:
+        raise argparse.ArgumentTypeError(f"expected a component id in 2-255, or 0 or off (not listened for), got {text}")
+    return value
 
 
 def geodetic_point(text: str) -> tuple[float, float, float]:

@@ -138,6 +138,12 @@ BAD_INPUTS = [
      "subtree 'a b': expected a tree ID"),
     (["retask", "{tmp}/binary.bin", "--to", "127.0.0.1:14650", "--key", "{tmp}/good_pose.json", "--sysid", "1",
       "--subtree", "Leg"], "binary.bin"),
+    ([*RUN, "--designation-compid", "abc"], "--designation-compid: expected a component id in 2-255, or 0 or off"),
+    ([*RUN, "--designation-compid", "256"], "--designation-compid: expected a component id in 2-255, or 0 or off"),
+    ([*RUN, "--designation-compid", "-3"], "--designation-compid: expected a component id in 2-255"),
+    ([*RUN, "--designation-compid", "1"], "--designation-compid: 1 is the autopilot's component"),
+    ([*RUN, "--designation-compid", "off", "--designation-unsigned"],
+     "--designation-unsigned: MAVLink designation is off (--designation-compid off)"),
     ([*RUN, "--reload-subtree", "Leg"], "--reload-subtree Leg: give the file it is reloaded from with --reload-from"),
     ([*RUN, "--reload-from", "{tmp}/next.yaml", "--reload-subtree", "Leg"], "has no subtree Leg; its subtrees: none"),
     (["train-detector", "--data", "{yolo}", "--init", "{tmp}/binary.bin"], "--init {tmp}/binary.bin: not detector weights"),
@@ -184,6 +190,42 @@ def test_bad_input_is_one_line_naming_it_and_exit_2(argv, named, tmp_path, capsy
     lines = [line for line in err.splitlines() if line.startswith("chaser-bt: ")]
     assert len(lines) == 1, err
     assert named in lines[0], err
+
+
+@pytest.mark.parametrize("options, compid, unsigned", [
+    ([], 191, False),  # MAV_COMP_ID_ONBOARD_COMPUTER
+    (["--designation-compid", "200"], 200, False),
+    (["--designation-compid", "255"], 255, False),
+    (["--designation-compid", "off"], None, False),
+    (["--designation-compid", "OFF"], None, False),
+    (["--designation-compid", "0"], None, False),
+    (["--designation-unsigned"], 191, True),
+    (["--designation-unsigned", "--designation-compid", "2"], 2, True),
+])
+def test_the_designation_options_reach_the_link_config(options, compid, unsigned, monkeypatch, capsys):
+    """``run`` up to connecting, where a stand-in for the vehicle link records the LinkConfig it was given."""
+    from chaser_bt.vehicle import VehicleLink
+    from chaser_bt.vehicle.designation import DEFAULT_COMPID
+    from chaser_bt.vehicle.errors import VehicleUnreachable
+
+    given = []
+
+    def connect(url, config):
+        given.append((url, config))
+        raise VehicleUnreachable("no vehicle here")
+
+    monkeypatch.setattr(VehicleLink, "connect", staticmethod(connect))
+    code = main([*RUN, *options])
+    err = capsys.readouterr().err
+    assert code == 1 and "no vehicle here" in err, err
+    ((url, config),) = given
+    assert url == "tcp:127.0.0.1:9"
+    assert (config.designation_compid, config.designation_unsigned) == (compid, unsigned)
+    assert DEFAULT_COMPID == 191  # the command line's default is the link's
+    warning = "chaser-bt: run: WARNING: --designation-unsigned: UNSIGNED MAVLink designations are believed"
+    assert (warning in err) is unsigned
+    if unsigned:  # said at start, before the vehicle is tried
+        assert err.index(warning) < err.index("no vehicle here")
 
 
 def test_a_campaign_refuses_an_output_folder_another_campaign_is_writing(tmp_path, capsys):

@@ -12,9 +12,10 @@ changes nothing). Exit 2 on a bad argument or key file, 1 when the datagram coul
 ``chaser-bt retask TREE --to HOST:PORT --key FILE --sysid N``: fly TREE instead of the running mission
 (:mod:`chaser_bt.mission.retask`: checked on the aircraft first, taken at a safe point). The tree is
 checked here too before it is sent; its includes are resolved on the aircraft, beside its running tree.
-With ``--subtree NAME`` TREE's tree of that ID (else its main tree) replaces that subtree of the running
-tree only. Here the file must read and hold that tree; whether it fits the running tree (its SubTree
-nodes' remappings, every key read written) is checked on the aircraft, which has that tree.
+With ``--subtree NAME`` it sends a ``replace_subtree`` command instead: TREE's tree of that ID (else its
+main tree) replaces that subtree of the running tree only (an aircraft that does not know the command
+drops it, and flies on). Here the file must read and hold that tree; whether it fits the running tree
+(its SubTree nodes' remappings, every key read written) is checked on the aircraft, which has that tree.
 """
 
 from __future__ import annotations
@@ -55,7 +56,8 @@ def add_command(subparsers) -> None:
                    help="the vehicle's MAVLink system id: another vehicle refuses it (required)")
     p.add_argument("--subtree", metavar="NAME",
                    help="replace only this subtree (a tree ID) of the running tree, with TREE's tree NAME or else "
-                        "its main tree; the rest of the mission keeps its progress (default: the whole tree)")
+                        "its main tree; the rest of the mission keeps its progress (sent as a replace_subtree "
+                        "command, which an aircraft without it drops; default: the whole tree)")
     p.add_argument("--link-id", type=int, default=0, metavar="N", help="this ground station's link id, 0-255 (default 0)")
     p.set_defaults(handler=run_retask)
 
@@ -76,7 +78,7 @@ def _send(to: str, datagrams: list[bytes]) -> str | None:
 
 def run_retask(args: argparse.Namespace) -> int:
     from chaser_bt.ground.auth import StreamSigner
-    from chaser_bt.ground.uplink import retask_datagram
+    from chaser_bt.ground.uplink import replace_subtree_datagram, retask_datagram
     from chaser_bt.tree import TreeError, load_tree
     from chaser_bt.vehicle.signing import load_key
 
@@ -89,8 +91,11 @@ def run_retask(args: argparse.Namespace) -> int:
             _check_replacement(path, subtree)
         if args.sysid > 255:
             raise ValueError(f"--sysid {args.sysid}: expected 1-255")
-        datagram = retask_datagram(StreamSigner(load_key(args.key), args.link_id), path.name,
-                                   path.read_text(encoding="utf-8"), args.sysid, subtree=subtree)
+        signer, text = StreamSigner(load_key(args.key), args.link_id), path.read_text(encoding="utf-8")
+        if subtree is None:
+            datagram = retask_datagram(signer, path.name, text, args.sysid)
+        else:
+            datagram = replace_subtree_datagram(signer, path.name, text, args.sysid, subtree)
     except TreeError as e:
         print(f"chaser-bt: retask: {str(e).strip().splitlines()[0]}", file=sys.stderr)
         return 2

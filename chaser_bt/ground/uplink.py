@@ -10,20 +10,26 @@ ground stream (:mod:`chaser_bt.ground.auth`), around a version-1 JSON message
 
 ``t`` is the sender's wall clock (informational; freshness is the signature's timestamp). Commands:
 
-=============  ==================================================================================
-``designate``  ``track_id`` (a radar track id, 0 .. 2^31-1): make that track's object the target
-``retask``     ``name`` (the tree's file name: ``.xml`` is BT.CPP XML, else YAML), ``tree`` (its
-               text), ``sysid`` (the vehicle it is for): fly this tree instead; with ``subtree`` (a
-               tree ID, optional) the file's tree replaces that subtree of the running tree only
-               (:mod:`chaser_bt.mission.retask`)
-=============  ==================================================================================
+=====================  ==========================================================================
+``designate``          ``track_id`` (a radar track id, 0 .. 2^31-1): make that track's object the
+                       target
+``retask``             ``name`` (the tree's file name: ``.xml`` is BT.CPP XML, else YAML), ``tree``
+                       (its text), ``sysid`` (the vehicle it is for): fly this tree instead
+                       (:mod:`chaser_bt.mission.retask`); it carries no ``subtree``
+``replace_subtree``    ``name``, ``tree`` and ``sysid`` as a retask's, and ``subtree`` (a tree ID): the
+                       file's tree replaces that subtree of the running tree only
+=====================  ==========================================================================
+
+A subtree's replacement is a kind of its own, never a ``retask`` with one more field: an aircraft
+that does not know ``replace_subtree`` drops it as an unknown command, and never flies the file as
+its whole tree. A ``retask`` that carries ``subtree`` is refused for the same reason.
 
 :class:`UplinkReceiver` reads them from a UDP port without blocking: a datagram that is unsigned,
 forged, replayed, from a host not allowed, malformed or an unknown command is dropped and counted
-(:class:`UplinkCounters`), never raised. Each consumer takes its own kind (:meth:`UplinkReceiver.take`):
-the ``GroundDesignation`` leaves the designations, the mission runner the retasks.
-:func:`designate_datagram` and :func:`retask_datagram` build them (``chaser-bt designate``,
-``chaser-bt retask``).
+(:class:`UplinkCounters`), never raised. Each consumer takes its own kinds (:meth:`UplinkReceiver.take`):
+the ``GroundDesignation`` leaves the designations, the mission runner the retasks and subtree
+replacements. :func:`designate_datagram`, :func:`retask_datagram` and :func:`replace_subtree_datagram`
+build them (``chaser-bt designate``, ``chaser-bt retask [--subtree NAME]``).
 """
 
 from __future__ import annotations
@@ -37,12 +43,14 @@ from typing import Any, Iterable
 from chaser_bt.ground.auth import StreamSigner, StreamVerifier
 from chaser_bt.ground.protocol import json_datagram, parse_datagram
 
-__all__ = ["COMMANDS", "GroundCommand", "UplinkCounters", "UplinkReceiver", "designate_datagram", "parse_command",
-           "retask_datagram"]
+__all__ = ["COMMANDS", "RETASK_COMMANDS", "GroundCommand", "UplinkCounters", "UplinkReceiver", "designate_datagram",
+           "parse_command", "replace_subtree_datagram", "retask_datagram"]
 
 log = logging.getLogger(__name__)
 
-COMMANDS = ("designate", "retask")
+COMMANDS = ("designate", "retask", "replace_subtree")
+#: The kinds that change the mission's tree: the whole of it, or one subtree.
+RETASK_COMMANDS = ("retask", "replace_subtree")
 MAX_TRACK_ID = 2**31 - 1
 #: Characters a tree ID may not hold (BehaviorTree.CPP refuses them), so no subtree name has them.
 _NOT_IN_TREE_IDS = frozenset(" \t\n\r<>&\"'/\\:*?|.")
@@ -51,8 +59,8 @@ _NOT_IN_TREE_IDS = frozenset(" \t\n\r<>&\"'/\\:*?|.")
 @dataclass(frozen=True)
 class GroundCommand:
     """One command the aircraft believed: its ``kind`` and ``seq``; a designation's ``track_id``; a
-    retask's tree ``name``, ``tree`` text, target ``sysid`` and the ``subtree`` it replaces (None: the
-    whole tree)."""
+    retask's tree ``name``, ``tree`` text and target ``sysid``; and the ``subtree`` a
+    ``replace_subtree`` replaces (None for a ``retask``: the whole tree)."""
 
     kind: str
     seq: int
@@ -89,18 +97,22 @@ def parse_command(payload: bytes) -> GroundCommand:
         return GroundCommand(kind, seq, track_id=_integer(msg, "track_id", 0, MAX_TRACK_ID))
     name, tree = msg.get("name"), msg.get("tree")
     if not isinstance(name, str) or not name or "/" in name or "\\" in name:
-        raise ValueError(f"retask: name {name!r}: expected a file name such as chase.yaml")
+        raise ValueError(f"{kind}: name {name!r}: expected a file name such as chase.yaml")
     if not isinstance(tree, str):
-        raise ValueError(f"retask: tree: expected the tree file's text, got {type(tree).__name__}")
+        raise ValueError(f"{kind}: tree: expected the tree file's text, got {type(tree).__name__}")
+    if kind == "retask":
+        if "subtree" in msg:
+            raise ValueError(f"retask: carries subtree {msg['subtree']!r}, which a retask never does (one subtree "
+                             f"comes as replace_subtree); refused rather than flown as the whole tree")
+        return GroundCommand(kind, seq, name=name, tree=tree, sysid=_integer(msg, "sysid", 1, 255))
     subtree = msg.get("subtree")
-    if subtree is not None:
-        _check_subtree(subtree)
+    _check_subtree(kind, subtree)
     return GroundCommand(kind, seq, name=name, tree=tree, sysid=_integer(msg, "sysid", 1, 255), subtree=subtree)
 
 
-def _check_subtree(subtree: object) -> None:
+def _check_subtree(kind: str, subtree: object) -> None:
     if not isinstance(subtree, str) or not subtree or any(c in _NOT_IN_TREE_IDS for c in subtree):
-        raise ValueError(f"retask: subtree {subtree!r}: expected a tree ID such as Search")
+        raise ValueError(f"{kind}: subtree {subtree!r}: expected a tree ID such as Search")
 
 
 def designate_datagram(signer: StreamSigner, track_id: int, seq: int = 0, unix_time: float | None = None) -> bytes:
@@ -112,19 +124,29 @@ def designate_datagram(signer: StreamSigner, track_id: int, seq: int = 0, unix_t
 
 
 def retask_datagram(signer: StreamSigner, name: str, tree_text: str, sysid: int, seq: int = 0,
-                    unix_time: float | None = None, subtree: str | None = None) -> bytes:
-    """The signed datagram that retasks vehicle ``sysid`` with the tree file ``name`` of text ``tree_text``
-    (with ``subtree``: that subtree of the running tree only; without it the datagram is as it always was).
+                    unix_time: float | None = None) -> bytes:
+    """The signed datagram that retasks vehicle ``sysid`` with the tree file ``name`` of text ``tree_text``.
 
     Raises:
-        ValueError: the tree does not fit one datagram, or ``subtree`` is not a tree ID.
+        ValueError: the tree does not fit one datagram.
     """
     t = time.time() if unix_time is None else unix_time
-    fields: dict[str, Any] = {"command": "retask", "name": name, "tree": tree_text, "sysid": int(sysid)}
-    if subtree is not None:
-        _check_subtree(subtree)
-        fields["subtree"] = subtree
-    return signer.sign(json_datagram("command", seq, t, fields))
+    return signer.sign(json_datagram("command", seq, t, {"command": "retask", "name": name, "tree": tree_text,
+                                                         "sysid": int(sysid)}))
+
+
+def replace_subtree_datagram(signer: StreamSigner, name: str, tree_text: str, sysid: int, subtree: str, seq: int = 0,
+                             unix_time: float | None = None) -> bytes:
+    """The signed datagram that replaces subtree ``subtree`` of vehicle ``sysid``'s running tree with the
+    tree file ``name`` of text ``tree_text``.
+
+    Raises:
+        ValueError: ``subtree`` is not a tree ID, or the tree does not fit one datagram.
+    """
+    _check_subtree("replace_subtree", subtree)
+    t = time.time() if unix_time is None else unix_time
+    return signer.sign(json_datagram("command", seq, t, {"command": "replace_subtree", "name": name, "tree": tree_text,
+                                                         "sysid": int(sysid), "subtree": subtree}))
 
 
 @dataclass
@@ -156,7 +178,7 @@ class UplinkReceiver:
         self.allowed_hosts = frozenset(allowed_hosts)
         self.max_per_poll = max_per_poll
         self.counters = UplinkCounters()
-        self._queued: dict[str, list[GroundCommand]] = {kind: [] for kind in COMMANDS}
+        self._queued: list[GroundCommand] = []  # believed and not yet taken, in the order they arrived
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._sock.setblocking(False)
         self._sock.bind((host, port))
@@ -165,10 +187,19 @@ class UplinkReceiver:
     def address(self) -> tuple[str, int]:
         return self._sock.getsockname()
 
-    def take(self, kind: str) -> list[GroundCommand]:
-        """The commands of ``kind`` received so far and not yet taken, oldest first (polls first)."""
+    def take(self, *kinds: str) -> list[GroundCommand]:
+        """The commands of these kinds received so far and not yet taken, in the order they arrived
+        (polls first); the others stay for their consumers.
+
+        Raises:
+            ValueError: no kind, or one that is not in :data:`COMMANDS`.
+        """
+        unknown = [k for k in kinds if k not in COMMANDS]
+        if not kinds or unknown:
+            raise ValueError(f"take {', '.join(unknown) or '(no kind)'}: expected kinds among {', '.join(COMMANDS)}")
         self.poll()
-        taken, self._queued[kind] = self._queued[kind], []
+        taken = [c for c in self._queued if c.kind in kinds]
+        self._queued = [c for c in self._queued if c.kind not in kinds]
         return taken
 
     def poll(self) -> list[GroundCommand]:
@@ -202,7 +233,7 @@ class UplinkReceiver:
             if cmd.subtree is not None:
                 what += f" (subtree {cmd.subtree})"
             log.info("uplink: %s %s from %s (seq %d)", cmd.kind, what, src, cmd.seq)
-            self._queued[cmd.kind].append(cmd)
+            self._queued.append(cmd)
             out.append(cmd)
         return out
 

@@ -40,7 +40,7 @@ TOPIC_MAVLINK_READ = "/mavlink/read"  # raw bytes the link read, per poll, with 
 TOPIC_MAVLINK_IN = "/mavlink/in"  # every decoded message from the vehicle side
 TOPIC_MAVLINK_OUT = "/mavlink/out"  # every message the mission sent
 TOPIC_TREE = "/tree/status"  # one per tick: status changes, root status, tip and its feedback
-TOPIC_RETASK = "/tree/retask"  # every retask offered in flight, taken or not, with both trees' hashes
+TOPIC_RETASK = "/tree/retask"  # every retask offered in flight, taken or not, with both trees' hashes (and its subtree)
 TOPIC_BLACKBOARD = "/blackboard"  # every blackboard write
 TOPIC_RADAR_DATAGRAMS = "/radar/datagrams"  # the datagrams the radar feed read, per read (replay)
 TOPIC_RADAR_PICTURE = "/radar/picture"  # the feed's picture: tracks and the correlator's association
@@ -92,7 +92,7 @@ CHANNELS: dict[str, ChannelSpec] = {c.topic: c for c in (
     }),
     _json_channel(TOPIC_RETASK, "chaser_bt.Retask", {
         "t": _NUM, "accepted": {"type": "boolean"}, "origin": _STR, "name": _STR, "old_hash": _STR,
-        "new_hash": _STR, "message": _STR,
+        "new_hash": _STR, "message": _STR, "subtree": {"type": ["string", "null"]},  # null: the whole tree
     }),
     _json_channel(TOPIC_BLACKBOARD, "chaser_bt.BlackboardWrite",
                   {"key": _STR, "client": _STR, "activity": _STR, "value": _ANY}),

@@ -43,6 +43,24 @@ def _request(text: str | bytes, name: str = "new.yaml", sysid: int | None = None
     return RetaskRequest(data, name, Path("."), "test", sysid)
 
 
+_JSON_TYPES = {"string": str, "number": (int, float), "integer": int, "boolean": bool, "null": type(None)}
+
+
+def _assert_fits_retask_schema(record: dict) -> None:
+    """``record`` has exactly the fields of the flight log's /tree/retask schema, each of a type it allows."""
+    import json
+
+    from chaser_bt.log.schemas import CHANNELS, TOPIC_RETASK
+
+    properties = json.loads(CHANNELS[TOPIC_RETASK].schema_data)["properties"]
+    assert set(record) == set(properties)
+    for key, value in record.items():
+        allowed = properties[key]["type"]
+        allowed = [allowed] if isinstance(allowed, str) else allowed
+        assert any(isinstance(value, _JSON_TYPES[t]) and not (isinstance(value, bool) and t != "boolean")
+                   for t in allowed), (key, value, allowed)
+
+
 @pytest.mark.parametrize("request_, link, resources, why", [
     (_request(b"\xff\xfe binary"), _link(), {}, "byte 0 is not UTF-8"),
     (_request("  \n"), _link(), {}, "empty"),
@@ -119,6 +137,9 @@ def test_a_rehearsal_retasks_in_the_air_and_a_broken_retask_changes_nothing(tmp_
                       on_start=record)
     recorders[0].close()
     assert [json.loads(r)["accepted"] for r in sink.records] == [False, True]
+    for r in sink.records:  # a whole tree's retask: subtree null, as the schema allows
+        assert json.loads(r)["subtree"] is None
+        _assert_fits_retask_schema(json.loads(r))
     refused, taken = report.retasks
     assert not refused["accepted"] and "broken.yaml" in refused["message"] and refused["t"] == pytest.approx(20, abs=0.1)
     assert taken["accepted"] and taken["old_hash"] == refused["old_hash"] == tree_hash(HOVER_LONG.encode())
@@ -158,21 +179,26 @@ def test_run_takes_retasks_from_the_watched_file_and_the_uplink(tmp_path):
     class _Uplink:
         def __init__(self):
             self.queued = [GroundCommand("retask", 1, name="a.yaml", tree="old", sysid=1),
-                           GroundCommand("retask", 2, name="b.yaml", tree=LAND, sysid=1)]
+                           GroundCommand("replace_subtree", 2, name="leg.yaml", tree="old", sysid=1, subtree="Leg"),
+                           GroundCommand("designate", 3, track_id=5),
+                           GroundCommand("retask", 4, name="b.yaml", tree=LAND, sysid=1)]
 
-        def take(self, kind):
-            taken, self.queued = ([c for c in self.queued if c.kind == kind], [])
+        def take(self, *kinds):
+            taken = [c for c in self.queued if c.kind in kinds]
+            self.queued = [c for c in self.queued if c.kind not in kinds]
             return taken
 
     runner = SimpleNamespace(retask_sources=[])
     args = argparse.Namespace(reload_from=tmp_path / "next.yaml", reload_subtree=None, tree=str(tmp_path / "flying.yaml"))
-    _retask_sources(runner, args, {"uplink": _Uplink()})
+    fake = _Uplink()
+    _retask_sources(runner, args, {"uplink": fake})
     watch, uplink = runner.retask_sources
     assert watch() is None  # no file yet
     offered = uplink()
     assert (offered.name, offered.data, offered.sysid, offered.base_dir) == ("b.yaml", LAND.encode(), 1, tmp_path)
     assert offered.subtree is None
     assert uplink() is None
+    assert [c.kind for c in fake.queued] == ["designate"]  # the designation is left for its leaves
 
 
 # -- replacing one subtree -------------------------------------------------------------------------
@@ -434,6 +460,8 @@ def test_a_subtree_replaced_mid_mission_keeps_the_parents_progress(tmp_path):
     assert seen["in_retask"] == [0, 2]
     # The flight log, the trace and Groot2's log show it as they show a whole-tree retask.
     assert [(json.loads(r)["accepted"], json.loads(r)["subtree"]) for r in sink.records] == [(False, "Nope"), (True, "Leg")]
+    for r in sink.records:
+        _assert_fits_retask_schema(json.loads(r))
     assert [("taken" in e.detail) for e in report.trace.events if e.name == "retask"] == [False, True]
     first, second = read_btlog(tmp_path / "flight.btlog"), read_btlog(tmp_path / "flight-2.btlog")
     assert 'name="hold"' in first.xml and 'name="settle"' in second.xml and 'name="hold"' not in second.xml
@@ -482,14 +510,14 @@ def test_a_subtree_retask_in_a_link_fault_still_ends_with_a_command_in_force(tmp
 
 
 def test_a_watched_file_and_the_uplink_can_name_a_subtree(tmp_path):
+    """The file watcher's subtree; over the uplink, a replace_subtree command after a retask (the latest wins)."""
     import argparse
+    import socket
+    import time
 
     from chaser_bt.cli import _retask_sources
-    from chaser_bt.ground.uplink import GroundCommand
-
-    class _Uplink:
-        def take(self, kind):
-            return [GroundCommand("retask", 1, name="leg.yaml", tree=NEW_LEG, sysid=1, subtree="Leg")]
+    from chaser_bt.ground.auth import StreamSigner
+    from chaser_bt.ground.uplink import UplinkReceiver, replace_subtree_datagram, retask_datagram
 
     path, t = tmp_path / "leg.yaml", [0.0]
     watcher = FileWatcher(path, settle_s=0.5, monotonic=lambda: t[0], subtree="Leg")
@@ -499,11 +527,26 @@ def test_a_watched_file_and_the_uplink_can_name_a_subtree(tmp_path):
     offered = watcher.poll()
     assert (offered.data, offered.subtree, offered.label) == (NEW_LEG.encode(), "Leg",
                                                               f"retask leg.yaml (file {path}): subtree Leg")
+    key, signer = bytes(range(32)), StreamSigner(bytes(range(32)))
+    rx = UplinkReceiver("127.0.0.1", 0, key)
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        for d in (retask_datagram(signer, "land.yaml", LAND, 1, seq=1),
+                  replace_subtree_datagram(signer, "leg.yaml", NEW_LEG, 1, "Leg", seq=2)):
+            s.sendto(d, rx.address)
+    end = time.monotonic() + 2.0
+    while rx.counters.accepted < 2 and time.monotonic() < end:
+        rx.poll()
+        time.sleep(0.01)
     runner = SimpleNamespace(retask_sources=[])
     args = argparse.Namespace(reload_from=None, reload_subtree=None, tree=str(tmp_path / "mission.yaml"))
-    _retask_sources(runner, args, {"uplink": _Uplink()})
+    _retask_sources(runner, args, {"uplink": rx})
     (uplink,) = runner.retask_sources
-    assert uplink().subtree == "Leg"
+    offered, again = uplink(), uplink()
+    rx.close()
+    assert (offered.name, offered.data, offered.sysid, offered.subtree, offered.origin) == (
+        "leg.yaml", NEW_LEG.encode(), 1, "Leg", "uplink")
+    assert offered.label == "retask leg.yaml (uplink): subtree Leg"
+    assert again is None
 
 
 def test_a_scenario_retask_may_name_a_subtree(tmp_path):
