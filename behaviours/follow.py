@@ -24,6 +24,7 @@ import numpy as np
 import py_trees
 
 from behaviours.base import CommandingBehaviour, VehicleBehaviour, optional_input, state_port
+from behaviours.vision import ESTIMATE_KEY
 from chaser_bt.control.follow import FollowConfig, FollowController
 from chaser_bt.control.sticks import StickMap
 from chaser_bt.cue import TargetCue, TargetEstimate
@@ -36,7 +37,6 @@ TELEMETRY_KEY = "/target/telemetry"
 #: The stick mapping's parameters; where ArduCopter 4.7 renamed one, both names (a vehicle answers one).
 STICK_PARAMS = (("ANGLE_MAX", "ATC_ANGLE_MAX"), ("PILOT_Y_RATE",), ("PILOT_SPEED_UP", "PILOT_SPD_UP"),
                 ("PILOT_SPEED_DN", "PILOT_SPD_DN"), ("THR_DZ",), ("RC1_DZ",), ("RC2_DZ",), ("RC4_DZ",))
-ESTIMATE_KEY = "/target/estimate"
 
 
 class FollowOutput(enum.Enum):

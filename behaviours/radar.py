@@ -19,8 +19,9 @@ from typing import Any
 import py_trees
 
 from behaviours.base import VehicleBehaviour, optional_input, state_port
-from chaser_bt.cue import TargetCue
-from chaser_bt.radar.custody import Custody, CustodyEvent, CustodyParams, designate, track_custody
+from behaviours.vision import ESTIMATE_KEY
+from chaser_bt.cue import TargetCue, TargetEstimate
+from chaser_bt.radar.custody import Custody, CustodyEvent, CustodyParams, Sight, designate, track_custody
 from chaser_bt.radar.feed import RadarFeed, RadarPicture, RadarTrack
 from chaser_bt.tree import NodeKind, input_port, output_port, register_behaviour
 
@@ -110,7 +111,8 @@ class RadarCue(_RadarBehaviour):
 
     The target is the one ``designated`` holds (RadarTrackValidated writes it), else the ``track``
     given, else the most confident track (then designated here). Custody follows it across radar
-    drop-outs, new ids and id swaps and never hands it to another object; an operator's track id on
+    drop-outs, new ids and id swaps and never hands it to another object; while the camera follows
+    the target (``sight``), a new track must also lie on its line of sight; an operator's track id on
     ``operator_track`` switches the target. SUCCESS with a cue of the target no older than
     ``max_age_s``; FAILURE while the radar does not confirm it (cue lost: search).
     """
@@ -124,6 +126,8 @@ class RadarCue(_RadarBehaviour):
                                      default_key=OPERATOR_CONFIRMATION_KEY),
         "max_age_s": input_port(float, "A cue older than this is lost (s)", default=2.0, minimum=0),
         "max_coast_s": input_port(float, "Unconfirmed this long, the target is lost (s)", default=15.0, above=0),
+        "sight": input_port(TargetEstimate, "The camera's estimate of the target it follows: a new track must lie on "
+                            "its line of sight", required=False, default_key=ESTIMATE_KEY),
         "state": state_port(),
     }
     OUTPUT_PORTS = {
@@ -137,7 +141,9 @@ class RadarCue(_RadarBehaviour):
         if custody is None:
             self.feedback_message = "no intruder track"
             return Status.FAILURE
-        custody, events = track_custody(custody, pic, CustodyParams(max_coast_s=self.get_input("max_coast_s")))
+        estimate = optional_input(self, "sight")
+        sight = Sight.of(estimate) if isinstance(estimate, TargetEstimate) else None
+        custody, events = track_custody(custody, pic, CustodyParams(max_coast_s=self.get_input("max_coast_s")), sight)
         _log(events, self.name)
         self._set_output("custody", custody)
         if custody.track_id is None or pic.t - custody.t_confirmed > self.get_input("max_age_s"):

@@ -24,6 +24,7 @@ import py_trees
 
 from behaviours.base import CommandingBehaviour, VehicleBehaviour, optional_input, state_port
 from behaviours.goto import WaypointFrame
+from behaviours.vision import ESTIMATE_KEY
 from chaser_bt.cue import TargetCue, TargetEstimate
 from chaser_bt.control.cue_approach import approach_point
 from chaser_bt.find import Find, FindCheck, FindEstimator, FindVerdict
@@ -34,7 +35,6 @@ Status = py_trees.common.Status
 log = logging.getLogger(__name__)
 
 CUE_KEY = "/target/cue"
-ESTIMATE_KEY = "/target/estimate"
 FIND_KEY = "/sar/find"
 CANDIDATE_KEY = "/sar/candidate"
 

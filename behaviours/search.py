@@ -3,7 +3,9 @@
 Each tick (paper section 3.4): advance the belief by the elapsed mission time, lower it where
 the camera looks from the vehicle's pose, re-plan when the step is reached, and send the step as
 one GUIDED position target facing along the move. The belief starts from the cue on
-``/target/cue``; the search state is published on ``/search/belief`` (a SearchSnapshot: belief,
+``/target/cue`` and moves as ``dynamics`` says: the paper's random walk at the target's expected
+speeds, or drifting with the cue's own velocity (paper section 5), so a target lost while it
+flew on is searched for where it went rather than where it was; the search state is published on ``/search/belief`` (a SearchSnapshot: belief,
 gain, set-point) for plots and logs. RUNNING until halted (vision acquired, the pilot, a timeout);
 FAILURE (and hover) without a cue, outside GUIDED or disarmed, when the belief cannot be built, or
 when the vehicle flies no closer to its set-points for ``stall_s`` (the autopilot refuses them).
@@ -12,6 +14,7 @@ when the vehicle flies no closer to its set-points for ``stall_s`` (the autopilo
 from __future__ import annotations
 
 import abc
+import enum
 import math
 from typing import Any
 
@@ -22,11 +25,19 @@ from behaviours.base import CommandingBehaviour, stall_message, state_port
 from chaser_bt.control.progress import ClosingWatch
 from chaser_bt.cue import TargetCue
 from chaser_bt.search import (BeliefError, BeliefGrid, GaussianDynamics, GridSpec, MaxBeliefPlanner,
-                              RecedingHorizonPlanner, SearchSession, SearchSnapshot, SensorModel, warm_up_planner)
+                              RecedingHorizonPlanner, SearchSession, SearchSnapshot, SensorModel, VelocityDynamics,
+                              warm_up_planner)
 from chaser_bt.tree import input_port, output_port, register_behaviour
 from chaser_bt.vision import CameraModel
 
 Status = py_trees.common.Status
+
+
+class TargetMotion(enum.Enum):
+    """How the search's belief moves while the target is unseen."""
+
+    RANDOM_WALK = "random_walk"  # the paper's: a Gaussian random walk at v_h_mps / v_v_mps
+    VELOCITY = "velocity"  # drift with the cue's velocity, spread by sigma_v_h_mps / sigma_v_v_mps (random walk without one)
 
 
 class _BeliefSearch(CommandingBehaviour):
@@ -40,6 +51,12 @@ class _BeliefSearch(CommandingBehaviour):
         "spacing_m": input_port(float, "Grid spacing (m)", default=20.0, above=0),
         "v_h_mps": input_port(float, "Target's expected horizontal speed (m/s)", default=10.0, minimum=0),
         "v_v_mps": input_port(float, "Target's expected vertical speed (m/s)", default=5.0, minimum=0),
+        "dynamics": input_port(TargetMotion, "random_walk (the paper's) or velocity (drift with the cue's velocity)",
+                               default=TargetMotion.RANDOM_WALK),
+        "sigma_v_h_mps": input_port(float, "With velocity: uncertainty of the cue's horizontal velocity (m/s)",
+                                    default=3.0, minimum=0),
+        "sigma_v_v_mps": input_port(float, "With velocity: uncertainty of the cue's vertical velocity (m/s)",
+                                    default=1.5, minimum=0),
         "max_range_m": input_port(float, "Camera detection range (m)", default=80.0, above=0),
         "tilt_deg": input_port(float, "Camera mount tilt below forward (deg)", default=10.0, minimum=-90, maximum=90),
         "p_detect": input_port(float, "Detection probability inside the footprint", default=0.9, minimum=0, maximum=1),
@@ -94,9 +111,18 @@ class _BeliefSearch(CommandingBehaviour):
         camera = CameraModel(max_range_m=self.get_input("max_range_m"), tilt_rad=math.radians(self.get_input("tilt_deg")),
                              p_detect=self.get_input("p_detect"))
         sensor = SensorModel(camera, spec)
-        dynamics = GaussianDynamics(self.get_input("v_h_mps"), self.get_input("v_v_mps"))
         belief = BeliefGrid.from_cue(spec, cue)
+        dynamics = self._dynamics(cue)
         return SearchSession(belief, dynamics, sensor, self.make_planner(sensor), cue.t, replan_s=self.get_input("replan_s"))
+
+    def _dynamics(self, cue: TargetCue) -> GaussianDynamics | VelocityDynamics:
+        """The belief's motion model: the cue's velocity when asked for and known, else the random walk."""
+        velocity = cue.velocity_enu
+        if (self.get_input("dynamics") is TargetMotion.VELOCITY and velocity is not None
+                and np.all(np.isfinite(velocity))):
+            return VelocityDynamics(np.asarray(velocity, float), self.get_input("sigma_v_h_mps"),
+                                    self.get_input("sigma_v_v_mps"))
+        return GaussianDynamics(self.get_input("v_h_mps"), self.get_input("v_v_mps"))
 
 
 @register_behaviour

@@ -8,11 +8,12 @@ the camera and the target's own telemetry write them too. Positions are ENU in t
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["TargetCue", "TargetEstimate"]
+__all__ = ["TargetCue", "TargetEstimate", "sight_offset_sigma"]
 
 
 @dataclass(frozen=True)
@@ -88,6 +89,20 @@ class TargetEstimate(TargetCue):
         if not 0.0 <= self.confidence <= 1.0:
             raise ValueError(f"confidence must be in [0, 1], got {self.confidence}")
         object.__setattr__(self, "bearing_enu", bearing)
+
+
+def sight_offset_sigma(camera_enu: np.ndarray, bearing_enu: np.ndarray, point_enu: np.ndarray,
+                       covariance_enu: np.ndarray) -> float:
+    """How far a point (a radar report, a cue) lies from a camera's line of sight ``camera + s * bearing``
+    (the range ``s`` left free: the camera measures it badly), in the point's own covariance: the
+    smallest Mahalanobis distance of the line from it, ``sqrt(d'S d - (b'S d)^2 / (b'S b))`` with
+    ``S`` the inverse covariance and ``d = point - camera``."""
+    d = np.asarray(point_enu, float) - np.asarray(camera_enu, float)
+    b = np.asarray(bearing_enu, float)
+    s_inv = np.linalg.inv(np.asarray(covariance_enu, float))
+    bsb = float(b @ s_inv @ b)
+    bsd = float(b @ s_inv @ d)
+    return math.sqrt(max(float(d @ s_inv @ d) - bsd * bsd / bsb, 0.0))
 
 
 def _finite_array(value: object, shape: tuple[int, ...], what: str) -> np.ndarray:

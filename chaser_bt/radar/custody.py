@@ -16,7 +16,10 @@ custody over one radar picture (pure: the custody holds all the state), by these
   not an object seen apart from the target while the target was tracked: another drone, a bird or
   clutter seen beside the target is never the target, so a drop-out never hands custody to it. The
   one exception is an id swap, the radar's own failure: a track that was within ``swap_m`` of the
-  target's and now fits the gate where the target's old id does not;
+  target's and now fits the gate where the target's old id does not. While the camera follows the
+  target (a :class:`Sight`: its line of sight, fresh), a track must also lie on that line within
+  ``sight_sigma`` of its own radar error: in a close crossing the gate holds both drones and the
+  radar's new id may be either, but the camera has kept its eye on one;
 * after ``max_coast_s`` without a confirmation the target is *lost* and the mission searches; only a
   confident track that appeared after the loss, within ``max_gate_m`` of where the target was last,
   takes it back (or the operator designates again, :func:`designate`).
@@ -32,10 +35,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from chaser_bt.cue import TargetCue
+from chaser_bt.cue import TargetCue, TargetEstimate, sight_offset_sigma
 from chaser_bt.radar.feed import RadarPicture, RadarTrack
 
-__all__ = ["CustodyParams", "CustodyEvent", "Custody", "designate", "track_custody"]
+__all__ = ["CustodyParams", "CustodyEvent", "Custody", "Sight", "designate", "track_custody"]
 
 
 @dataclass(frozen=True)
@@ -60,6 +63,11 @@ class CustodyParams:
         max_coast_s: unconfirmed this long, the target is lost (s).
         reacquire_confidence: a lost target is taken back only by a new track at least this confident.
         confidence_tau_s: custody confidence falls as exp(-unconfirmed / tau).
+        sight_sigma: with a fresh :class:`Sight`, a track taking the target over lies on the camera's
+            line of sight within this many sigma of its report's error (plus ``sight_floor_m``).
+        sight_floor_m: added to a report's error on every axis against the line of sight (the
+            camera's mounting and timing, the target's size; m).
+        sight_max_age_s: a sight older than this, against the report's time, is not used (s).
     """
 
     gate_sigma: float = 3.5
@@ -76,6 +84,9 @@ class CustodyParams:
     max_coast_s: float = 15.0
     reacquire_confidence: float = 0.8
     confidence_tau_s: float = 4.0
+    sight_sigma: float = 3.5
+    sight_floor_m: float = 2.0
+    sight_max_age_s: float = 0.5
 
     def __post_init__(self) -> None:
         for name in ("gate_sigma", "floor_m", "vel_gate_mps", "max_gate_m", "apart_m", "max_coast_s", "confidence_tau_s",
@@ -152,6 +163,28 @@ class Custody:
                          self.target_id)
 
 
+@dataclass(frozen=True)
+class Sight:
+    """The camera's line of sight to the target it follows at mission time ``t``: from ``camera_enu``
+    along the unit ``bearing_enu`` (the range, which the camera measures badly, is left out)."""
+
+    t: float
+    camera_enu: np.ndarray
+    bearing_enu: np.ndarray
+
+    @classmethod
+    def of(cls, estimate: TargetEstimate) -> Sight | None:
+        """The sight a camera estimate gives, None without a usable range to place its camera."""
+        if not math.isfinite(estimate.range_m):
+            return None
+        return cls(estimate.t, estimate.position_enu - estimate.range_m * estimate.bearing_enu, estimate.bearing_enu)
+
+    def offset_sigma(self, report: RadarTrack, floor_m: float) -> float:
+        """How far ``report`` lies from the line of sight, in its error widened by ``floor_m``."""
+        return sight_offset_sigma(self.camera_enu, self.bearing_enu, report.position_enu,
+                                  report.covariance_enu + floor_m**2 * np.eye(3))
+
+
 def designate(track: RadarTrack, t: float, by: str, previous: Custody | None = None) -> tuple[Custody, CustodyEvent | None]:
     """Custody of the object ``track`` reports, chosen ``by`` someone; the event is None when ``track``
     already carries the designated target (a re-validation changes nothing)."""
@@ -226,8 +259,10 @@ def _confirm(c: Custody, report: RadarTrack) -> Custody:
                    lost=False)
 
 
-def track_custody(c: Custody, picture: RadarPicture, params: CustodyParams | None = None) -> tuple[Custody, list[CustodyEvent]]:
-    """Carry custody over one radar picture; the new custody and what changed."""
+def track_custody(c: Custody, picture: RadarPicture, params: CustodyParams | None = None,
+                  sight: Sight | None = None) -> tuple[Custody, list[CustodyEvent]]:
+    """Carry custody over one radar picture; the new custody and what changed. ``sight``: where the
+    camera sees the target, when it does (a track taking the target over must lie on it)."""
     p = params or CustodyParams()
     t = picture.t
     events: list[CustodyEvent] = []
@@ -252,7 +287,7 @@ def track_custody(c: Custody, picture: RadarPicture, params: CustodyParams | Non
         events.append(CustodyEvent(t, "released", c.target_id, c.track_id, f"{why}; coasting"))
         c = replace(c, track_id=None, misses=0)
     if c.track_id is None:
-        c = _hand_over(c, candidates, p, events)
+        c = _hand_over(c, candidates, p, events, sight)
     c = _note_others(c, candidates, p)
     if c.track_id is None and c.since_confirmed(t) > p.max_coast_s:
         c = replace(c, lost=True)
@@ -261,8 +296,10 @@ def track_custody(c: Custody, picture: RadarPicture, params: CustodyParams | Non
 
 
 def _hand_over(c: Custody, candidates: dict[int, RadarTrack], p: CustodyParams,
-               events: list[CustodyEvent]) -> Custody:
-    """The track that takes over a coasting target: the best fit in the gate that can be the target."""
+               events: list[CustodyEvent], sight: Sight | None = None) -> Custody:
+    """The track that takes over a coasting target: the best fit in the gate that can be the target,
+    and, while the camera sees the target, lies on its line of sight (one that does not waits: the
+    camera may be the one that is wrong, so it is not refused for good)."""
     best: tuple[_Fit, RadarTrack, str] | None = None
     refused = set(c.refused_ids)
     swap_window = c.since_confirmed(max((tr.t for tr in candidates.values()), default=c.t_confirmed)) <= 1.0
@@ -275,7 +312,11 @@ def _hand_over(c: Custody, candidates: dict[int, RadarTrack], p: CustodyParams,
         if not fit.inside:
             refused.add(tr.track_id)
             continue
+        seen = sight is not None and abs(tr.t - sight.t) <= p.sight_max_age_s
+        if seen and sight.offset_sigma(tr, p.sight_floor_m) > p.sight_sigma:
+            continue  # in the gate, but not where the camera sees the target
         why = "id swap" if tr.track_id in c.apart_ids else "new id in the target's gate"
+        why += ", on the camera's line of sight" if seen else ""
         if best is None or fit.cost < best[0].cost:
             best = (fit, tr, why)
     if best is None:

@@ -20,6 +20,7 @@ simulator's) is asked for only those parts (:class:`CameraSensor`).
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, field, replace
 from typing import Callable, ClassVar, Sequence
@@ -29,12 +30,15 @@ from scipy.spatial.transform import Rotation
 
 from chaser_bt.cue import TargetCue, TargetEstimate
 from chaser_bt.vision.camera import CameraModel
+from chaser_bt.vision.cue_fit import CueFit
 from chaser_bt.vision.detection import Detection
 from chaser_bt.vision.focus import FocusWindow, focus_window
 from chaser_bt.vision.frame_source import Frame, FrameSource, Region, reads_regions
 from chaser_bt.vision.projection import AttitudeSmoother, Projector
 from chaser_bt.vision.range import TARGET_SPAN_M, RangeFilter, range_from_box
 from chaser_bt.vision.trackers import Track, TrackerBank
+
+log = logging.getLogger(__name__)
 
 __all__ = ["OwnshipPose", "PipelineConfig", "FramePlan", "VisionPipeline", "CameraSensor", "ground_range"]
 
@@ -92,6 +96,11 @@ class PipelineConfig:
         refine_tracks: between detector frames, re-place the tracked boxes with the detector's box
             refiner when it has one (:mod:`chaser_bt.vision.detector.refine`): trackers keep the detection's
             size and drift by a pixel or two a frame.
+        cue_fit_tau_s, cue_switch_sigma: radar-camera association (:mod:`chaser_bt.vision.cue_fit`):
+            each gated track's offset from the cue's line of sight, in the cue's error, is averaged
+            with this time constant; once the followed track's exceeds ``cue_switch_sigma`` and
+            another's is a sigma lower, the pipeline follows the other (the trackers slid onto a
+            drone crossing close by). ``inf`` never switches.
     """
 
     detect_every: int = 3
@@ -117,6 +126,8 @@ class PipelineConfig:
     cue_range_ratio: float = 5.0
     detector_input_px: int = 320
     track_margin_px: float = 64.0
+    cue_fit_tau_s: float = 1.0
+    cue_switch_sigma: float = 2.5
 
 
 @dataclass(frozen=True)
@@ -159,6 +170,8 @@ class VisionPipeline:
         self.detector_name = ""
         self.last_estimate: TargetEstimate | None = None
         self.focused_frames = 0
+        self.cue_fit = CueFit(self.config.cue_fit_tau_s, self.config.cue_switch_sigma)
+        self.cue_switches = 0  # times the followed track was given up for one that fits the cue better
         self._seen_attitude: Rotation | None = None  # the camera's attitude at the last frame processed
         # (time, where the detector looks; None: the whole frame) of detector frames planned, not processed yet.
         self._unseen_detections: list[tuple[float, Region | None]] = []
@@ -191,6 +204,7 @@ class VisionPipeline:
         self.detector_name = name
         self.trackers = self._bank()
         self.track = None
+        self.cue_fit.reset()
         self.last_estimate = None
         self.range_filter.reset()
         self.frames = 0
@@ -253,6 +267,12 @@ class VisionPipeline:
         tracks = [tr for tr in tracks if frame.t - tr.t_detected <= self.config.max_track_age_s and tr.hits >= need]
         if cue_enu is not None and tracks:
             tracks = self._gate(tracks, att, cam, cue_enu, cue.covariance_enu)
+        if cue_enu is None:
+            self.cue_fit.reset()
+        elif tracks:
+            bearings = self.projector.bearing_enu(np.array([tr.centre for tr in tracks]), att)
+            self.cue_fit.update(frame.t, cam, {tr.track_id: b for tr, b in zip(tracks, bearings)}, cue_enu,
+                                cue.covariance_enu)
         if not tracks:
             self.track = None
             self.range_filter.reset()
@@ -394,7 +414,13 @@ class VisionPipeline:
         if self.track is not None:
             same = next((tr for tr in tracks if tr.track_id == self.track.track_id), None)
             if same is not None:
-                return same
+                other = self.cue_fit.better_than(same.track_id, [tr.track_id for tr in tracks])
+                if other is None:
+                    return same
+                self.cue_switches += 1
+                log.info("vision: track %d drifted off the cue (%.1f sigma); following track %d (%.1f sigma) at %.1f s",
+                         same.track_id, self.cue_fit.offset(same.track_id), other, self.cue_fit.offset(other), t)
+                return next(tr for tr in tracks if tr.track_id == other)
         last = self.last_estimate
         if last is not None and last.bearing_enu is not None and t - last.t <= self.config.reacquire_s and len(tracks) > 1:
             bearings = self.projector.bearing_enu(np.array([tr.centre for tr in tracks]), attitude)

@@ -86,3 +86,27 @@ def test_search_with_a_cue_off_the_grid_fails_with_the_reason(vehicle):
     runner = runner_for(vehicle, "MaxBeliefSearch: {}")
     assert vehicle.fly(runner, 2.0) == Status.FAILURE
     assert "outside the search grid" in runner.tree.root.feedback_message
+
+
+def _belief_centre(snap: SearchSnapshot) -> np.ndarray:
+    p = snap.belief.p / snap.belief.p.sum()
+    return np.einsum("ijk,ijkl->l", p, snap.belief.spec.centers())
+
+
+def test_velocity_dynamics_drift_the_belief_with_the_cue_and_the_random_walk_does_not(vehicle):
+    """A cue 5 s old moving 8 m/s east: after 15 s of search the belief's centre has drifted
+    east by about 8 x (5 + 15) = 160 m less what the camera took away near it (the grid is +-400 m,
+    the chaser searches from far west of it); with the paper's random walk it stays at the cue."""
+    take_off(vehicle, 40)
+    t0 = vehicle.clock.now()
+    cue = TargetCue(t0 - 5.0, CUE_ENU, np.diag([20.0, 20.0, 10.0]) ** 2, np.array([8.0, 0.0, 0.0]), "radar")
+    centres = {}
+    for motion in ("velocity", "random_walk"):
+        py_trees.blackboard.Blackboard.set("/target/cue", cue)
+        runner = runner_for(vehicle, f"RHCSearch: {{horizon: 3, gamma: 0.9, dynamics: {motion}}}")
+        snaps = snapshots(vehicle, runner, 15.0)
+        assert runner.status == Status.RUNNING, runner.tip_message()
+        centres[motion] = _belief_centre(snaps[-1])
+    drift = centres["velocity"] - CUE_ENU
+    assert 100.0 < drift[0] < 200.0 and abs(drift[1]) < 30.0
+    assert np.linalg.norm(centres["random_walk"][:2] - CUE_ENU[:2]) < 30.0

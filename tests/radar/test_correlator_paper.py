@@ -94,11 +94,13 @@ def test_gated_recovers_after_a_swap_on_velocity_and_position():
     def tracks(t):
         return {1: OWN, 2: OTHER} if t <= 20.0 else {1: OTHER, 2: OWN}
 
-    out = run(tracks, 23.0, GatedCorrelator())
+    out = run(tracks, 24.0, GatedCorrelator())
     # Rejecting track 1 needs two inconsistent reports (20.25, 20.5). Track 2 was seen 50 m from our
-    # track: another object, reclaimed only by four reports in a row on our GPS (20.25 to 21.0).
-    assert out[20.25][0] != 2 and out[20.5] == (None, None) and out[20.75][0] is None
-    assert all(out[t] == (2, 2) for t in out if t >= 21.0)
+    # track: another object, reclaimed only when every report of the last 2 s is on our GPS: those
+    # from 20.25 on, so at 22.25.
+    assert out[20.25][0] != 2 and out[20.5] == (None, None)
+    assert all(out[t][0] is None for t in out if 20.5 <= t < 22.25)
+    assert all(out[t] == (2, 2) for t in out if t >= 22.25)
 
 
 def test_gated_files_duplicates_under_the_ownship():
@@ -124,6 +126,56 @@ def test_gated_never_takes_a_drone_seen_beside_us_for_us_when_our_track_drops():
     assert out[2.75].associated_id == 1 and out[2.75].unassociated_ids == (2,)
     assert all(2 not in out[t].ownship_ids and 2 in out[t].unassociated_ids for t in out if t >= 0.5)
     assert out[4.25].associated_id == 3 and out[6.0].ownship_ids == {3}
+
+
+def _close_pass(gap: bool) -> dict:
+    """Another drone (track 2) is seen 15 m beside our track (1) until t = 3 s, when our track drops
+    for good. Track 2 then passes over our GPS: 2 m off for 1 s (t = 4 to 5, four reports whose mean
+    offset is under the 5 m floor), then 12 m off again. With ``gap``, the radar does not report
+    track 2 for 1.5 s (t = 3 to 4.5), longer than a track stays active. A bird (track 3) is reported
+    200 m away throughout. Returns t -> Association."""
+    c, out = GatedCorrelator(), {}
+    for k in range(0, 33):
+        t = k / 4
+        c.add_ownship(t, OWN, np.zeros(3))
+        offset = 15.0 if t < 3.0 else (2.0 if 4.0 <= t < 5.0 else 12.0)
+        tracks = {2: np.array([offset, 0.0, 0.0]), 3: np.array([200.0, 0.0, 0.0])}
+        if t < 3.0:
+            tracks[1] = OWN + 0.5
+        if gap and 3.0 <= t < 4.5:
+            del tracks[2]
+        ids = list(tracks)
+        c.add_tracks(TrackPoints.build(t, ids, [tracks[i] for i in ids], np.zeros((len(ids), 3)), 8.0))
+        out[t] = c.associate(t)
+    return out
+
+
+@pytest.mark.parametrize("gap", [False, True])
+def test_gated_never_takes_a_drone_seen_beside_us_for_us_in_a_close_pass(gap):
+    """One second on our GPS is not two: track 2 is never the ownship, and stays in the picture
+    whenever it is reported (a report gap does not make it a stranger)."""
+    out = _close_pass(gap)
+    assert out[2.75].associated_id == 1
+    assert all(out[t].associated_id != 2 and 2 not in out[t].ownship_ids for t in out)
+    assert all(2 in out[t].unassociated_ids for t in out if t >= 4.5)
+
+
+def test_gated_reclaims_a_track_seen_beside_us_after_two_seconds_on_our_gps():
+    """The same drone stays 2 m off our GPS from t = 4 s on (sigma 2 m: the gate is 8 m, so its
+    reports 15 m off are not on our GPS): every report of the last 2 s on it from t = 6.0 (4.0 ..
+    6.0), so ours from then (an id swap with our own track), not before."""
+    c, out = GatedCorrelator(), {}
+    for k in range(0, 33):
+        t = k / 4
+        c.add_ownship(t, OWN, np.zeros(3))
+        tracks = {2: np.array([15.0 if t < 4.0 else 2.0, 0.0, 0.0])}
+        if t < 3.0:
+            tracks[1] = OWN + 0.5
+        ids = list(tracks)
+        c.add_tracks(TrackPoints.build(t, ids, [tracks[i] for i in ids], np.zeros((len(ids), 3)), 2.0))
+        out[t] = c.associate(t)
+    assert all(out[t].associated_id is None for t in out if 3.75 <= t < 6.0)  # ours is held to 3.5
+    assert all(out[t].associated_id == 2 for t in out if t >= 6.0)
 
 
 def test_make_correlator_by_name():

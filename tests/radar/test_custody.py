@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from chaser_bt.radar.custody import Custody, CustodyParams, designate, track_custody
+from chaser_bt.radar.custody import Custody, CustodyParams, Sight, designate, track_custody
 from chaser_bt.radar.feed import RadarPicture, RadarTrack
 
 COV = np.eye(3) * 4.0  # 2 m per axis: trace 12, the report's share of the gate's sigma
@@ -195,3 +195,44 @@ def test_the_gate_grows_with_the_silence_but_never_past_what_the_target_can_fly(
     near = fly(c, [picture(5.0, track(9, 5.0, (25 + 100, 100, 30), (5, 0, 0), first=5.0))])[0]
     far = fly(c, [picture(5.0, track(9, 5.0, (25 + 110, 100, 30), (5, 0, 0), first=5.0))])[0]
     assert near.track_id == 9 and far.track_id is None
+
+
+def _crossing(sight: Sight | None):
+    """The target (track 1, 5 m/s east at (0, 100, 30)) drops at t = 0.2. At t = 1.0 two new ids appear
+    in its gate: track 8 on the prediction (5, 100, 30), track 9 12 m north of it, (5, 112, 30): by
+    the radar alone 8 fits better. The camera, 40 m east of the prediction at the same height,
+    looks along its line of sight at ``sight``."""
+    c = start()
+    c, _ = fly(c, [picture(0.2, track(1, 0.2, (1, 100, 30), (5, 0, 0))), picture(0.6)])
+    pic = picture(1.0, track(8, 1.0, (5, 100, 30), (5, 0, 0), first=1.0),
+                  track(9, 1.0, (5, 112, 30), (5, 0, 0), first=1.0))
+    return track_custody(c, pic, None, sight)
+
+
+def _looking_at(target) -> Sight:
+    camera = np.array([45.0, 100.0, 30.0])
+    d = np.asarray(target, float) - camera
+    return Sight(1.0, camera, d / np.linalg.norm(d))
+
+
+def test_without_the_camera_the_best_radar_fit_takes_the_target_over():
+    c, ev = _crossing(None)
+    assert c.track_id == 8 and ev[-1].kind == "handover" and "line of sight" not in ev[-1].reason
+
+
+def test_a_track_off_the_cameras_line_of_sight_does_not_take_the_target_over():
+    # The camera sees the target at track 9's place, along (-40, 12, 0). Track 8 lies 480 / 41.8 =
+    # 11.5 m off that line: with 2 m radar error + 2 m floor per axis (sigma sqrt(8) = 2.83 m) that is
+    # 4.1 sigma, beyond 3.5: it waits, and track 9 (on the line) takes over.
+    c, ev = _crossing(_looking_at((5.0, 112.0, 30.0)))
+    assert c.track_id == 9 and ev[-1].kind == "handover" and "line of sight" in ev[-1].reason
+    assert 8 not in c.refused_ids  # not refused for good: the camera may be the one that is wrong
+    # Looking at track 8's place instead (due west) puts track 9 12 m off the line (4.2 sigma): track 8.
+    c, _ = _crossing(_looking_at((5.0, 100.0, 30.0)))
+    assert c.track_id == 8
+
+
+def test_a_stale_sight_is_not_used():
+    stale = _looking_at((5.0, 112.0, 30.0))
+    c, _ = _crossing(Sight(0.4, stale.camera_enu, stale.bearing_enu))  # 0.6 s before the reports
+    assert c.track_id == 8

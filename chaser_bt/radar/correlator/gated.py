@@ -26,10 +26,14 @@ association for as long. This method looks at each track's last few reports inst
 * a track reported at the same time as the associated one and at least ``ambiguity_m`` from it is
   another object (the drone we follow, a bird), unless it fits the GPS better than the associated
   one by ``switch_margin`` (then the association may be the mistake): it is never taken for the ownship on the gate alone,
-  which at long range is tens of metres wide. Only the ownship's own telemetry reclaims it: its last
-  ``reject_window`` reports consistent and their mean offset from the GPS under ``floor_m`` (an id
-  swap with our own track). So when our track drops, a co-moving intruder a dozen metres away is not
-  taken for us, and it stays in the mission's picture.
+  which at long range is tens of metres wide. Only the ownship's own telemetry reclaims it: every
+  report of the last ``reclaim_s`` seconds (at least ``reject_window`` of them) consistent and their
+  mean offset from the GPS under ``floor_m`` (an id swap with our own track). A few reports are not
+  enough: in a close pass the radar cannot part two drones ten metres apart, and four noisy reports
+  of the other one average onto our GPS by chance; over two seconds the two have drifted apart. So
+  when our track drops, a co-moving intruder a dozen metres away is not taken for us, and it stays
+  in the mission's picture. A track stays "apart" while the radar keeps reporting it within the
+  history window, so a report gap does not launder it.
 
 The velocity gate is what catches a swap within a scan or two: the ids exchange where the two
 drones are close in position, but they rarely fly the same velocity there.
@@ -60,6 +64,7 @@ class GatedCorrelator(TrackCorrelator):
             candidate (the radar dropped it and already tracks the ownship under a new id).
         switch_margin: a candidate whose mean normalised residual is lower than the associated
             track's by this much, and not within ``ambiguity_m`` of it, takes the association.
+        reclaim_s: how long a track seen apart must stay on the GPS before it is taken for ours.
     """
 
     name = "gated"
@@ -67,10 +72,13 @@ class GatedCorrelator(TrackCorrelator):
     def __init__(self, *, gate_sigma: float = 4.0, floor_m: float = 5.0, vel_gate_mps: float = 3.0,
                  confirm_n: int = 2, reject_window: int = 4, reject_n: int = 2, active_s: float = 1.0,
                  ambiguity_m: float = 10.0, hold_s: float = 0.5, switch_margin: float = 0.3, history_s: float = 3.0,
-                 max_gps_gap_s: float = 1.0) -> None:
+                 max_gps_gap_s: float = 1.0, reclaim_s: float = 2.0) -> None:
         super().__init__(history_s=history_s, active_s=active_s, max_gps_gap_s=max_gps_gap_s)
         if not (1 <= confirm_n and 1 <= reject_n <= reject_window):
             raise ValueError("need 1 <= confirm_n and 1 <= reject_n <= reject_window")
+        if not 0.0 <= reclaim_s < history_s:
+            raise ValueError(f"reclaim_s must be in [0, history_s = {history_s}), got {reclaim_s}")
+        self.reclaim_s = reclaim_s
         self.gate_sigma = gate_sigma
         self.floor_m = floor_m
         self.vel_gate_mps = vel_gate_mps
@@ -127,7 +135,7 @@ class GatedCorrelator(TrackCorrelator):
                 rejected.add(tid)
         self._candidates = frozenset(candidates)
         self._latest = latest
-        self._note_apart(latest, last_t, recent_cost)
+        self._note_apart(set(np.unique(p.track_id).tolist()), latest, last_t, recent_cost)
         a = self.associated_id
         if a is not None and a in set(w.active_ids.tolist()) and a not in rejected:
             fresher = [k for k in candidates if k != a and last_t[k] > last_t[a]]
@@ -142,10 +150,12 @@ class GatedCorrelator(TrackCorrelator):
             return None
         return min(clear, key=lambda k: (w.t - last_t[k] > self.hold_s, clear[k], k))
 
-    def _note_apart(self, latest: dict[int, np.ndarray], last_t: dict[int, float], cost: dict[int, float]) -> None:
+    def _note_apart(self, seen: set[int], latest: dict[int, np.ndarray], last_t: dict[int, float],
+                    cost: dict[int, float]) -> None:
         """Remember the tracks reported beside the associated one, at least ``ambiguity_m`` from it and
-        no closer to the GPS than it (a track that fits better may be ours: the association may be wrong)."""
-        self._apart &= set(latest)  # ended tracks: radar ids are not reused
+        no closer to the GPS than it (a track that fits better may be ours: the association may be wrong).
+        Forgotten once out of the history window (``seen``): radar ids are not reused."""
+        self._apart &= seen
         a = self.associated_id
         if a is None or a not in latest:
             return
@@ -155,9 +165,14 @@ class GatedCorrelator(TrackCorrelator):
                 self._apart.add(k)
 
     def _reclaimed(self, w: CorrelationWindow, ok: np.ndarray, start: int, end: int, order: np.ndarray) -> bool:
-        """Whether the ownship's telemetry says a track seen apart is now ours: its last
-        ``reject_window`` reports consistent with the GPS and their mean offset from it under ``floor_m``."""
-        idx = order[max(start, end - self.reject_window):end]
+        """Whether the ownship's telemetry says a track seen apart is now ours: reported for at least
+        ``reclaim_s``, every report of the last ``reclaim_s`` (at least ``reject_window``) consistent
+        with the GPS, and their mean offset from it under ``floor_m``."""
+        idx = order[start:end]
+        t = w.points.t[idx]
+        if t.size == 0 or t[0] > w.t - self.reclaim_s:
+            return False
+        idx = idx[t >= w.t - self.reclaim_s]
         if idx.size < self.reject_window or not ok[idx].all():
             return False
         offset = (w.points.position[idx] - w.gps_position[idx]).mean(axis=0)
