@@ -21,7 +21,7 @@ from chaser_bt.tree.preconditions import Preconditions
 from chaser_bt.tree.registry import Registry, default_registry
 from chaser_bt.tree.validation import Resolution, ResolvedNode, resolve_document
 
-__all__ = ["MissionTree", "load_tree", "load_tree_text", "validate_tree", "validate_tree_text"]
+__all__ = ["MissionTree", "build_tree", "collect_wiring", "load_tree", "load_tree_text", "validate_tree", "validate_tree_text"]
 
 
 @dataclass
@@ -53,7 +53,7 @@ def load_tree(path: str | Path, registry: Registry | None = None) -> MissionTree
     """
     path = Path(path)
     document, problems = read_document(path)
-    tree = _build(document, problems, registry)
+    tree = build_tree(document, problems, registry)
     tree.source = path
     return tree
 
@@ -71,17 +71,19 @@ def load_tree_text(
         fmt: ``"yaml"`` or ``"xml"``; default by ``source``'s extension, else XML when the text starts with '<'.
         base_dir: the folder includes are relative to.
     """
-    return _build(*_parse_text(text, source, fmt, base_dir), registry)
+    return build_tree(*_parse_text(text, source, fmt, base_dir), registry)
 
 
-def _build(document: TreeDocument, problems: list[Problem], registry: Registry | None) -> MissionTree:
+def build_tree(document: TreeDocument, problems: list[Problem], registry: Registry | None) -> MissionTree:
+    """Resolve a parsed document (with the parser's ``problems``) and build its behaviours; TreeError
+    listing every problem when it cannot fly."""
     resolution, problems = _resolve(document, problems, registry)
     if problems:
         raise TreeError(problems)
     assert resolution.root is not None and resolution.main is not None
     wiring: dict[uuid.UUID, dict[str, str]] = {}
     root = build_node(resolution.root)
-    _collect_wiring(resolution.root, root, wiring)
+    collect_wiring(resolution.root, root, wiring)
     return MissionTree(resolution.main, root, None, resolution.inputs, wiring, resolution.root)
 
 
@@ -114,12 +116,14 @@ def _resolve(
     return resolution, sorted(set(problems + more))
 
 
-def _collect_wiring(
+def collect_wiring(
     resolved: ResolvedNode, node: py_trees.behaviour.Behaviour, wiring: dict[uuid.UUID, dict[str, str]]
 ) -> None:
+    """Record, by node id, the port wiring of ``node`` and its descendants as ``resolved`` gives it
+    (what ``chaser-bt show`` and Groot2 describe)."""
     if isinstance(node, Preconditions):
         wiring[node.id] = {c.kind: repr(c.expression.text) for c in node.conditions}
         node = node.decorated
     wiring[node.id] = dict(resolved.wiring)
     for resolved_child, child in zip(resolved.children, node.children, strict=True):
-        _collect_wiring(resolved_child, child, wiring)
+        collect_wiring(resolved_child, child, wiring)

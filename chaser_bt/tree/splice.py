@@ -20,7 +20,7 @@ import py_trees
 
 from chaser_bt.tree.builder import build_node
 from chaser_bt.tree.errors import Problem, TreeError
-from chaser_bt.tree.loader import MissionTree, _build, _collect_wiring
+from chaser_bt.tree.loader import MissionTree, build_tree, collect_wiring
 from chaser_bt.tree.model import SUBTREE_ID, NodeSpec, TreeDocument, TreeSpec
 from chaser_bt.tree.registry import Registry, default_registry
 from chaser_bt.tree.validation import ResolvedNode, resolve_document
@@ -78,7 +78,7 @@ def build_document(document: TreeDocument, problems: list[Problem] | None = None
     Raises:
         TreeError: ``problems`` (parse problems) and every validation problem, sorted.
     """
-    return _build(document, list(problems or []), registry)
+    return build_tree(document, list(problems or []), registry)
 
 
 def subtree_ids(tree: MissionTree) -> list[str]:
@@ -208,7 +208,7 @@ def _pair(resolved: ResolvedNode, behaviour: py_trees.behaviour.Behaviour, name:
     if ref is not None and ref.tree_id == name and resolved.children:
         top = resolved.children[0]
         new = build_node(top)
-        _collect_wiring(top, new, wiring)
+        collect_wiring(top, new, wiring)
         old = behaviour.children[0]
         for node in old.iterate():
             wiring.pop(node.id, None)
