@@ -150,3 +150,16 @@ def stall_message(watch: ProgressWatch | ClosingWatch, now: float, distance_m: f
     else:
         why = "the autopilot is not flying the target (wind? a lost command?)"
     return f"no progress for {since:.0f} s with {distance_m:.0f} m to go: {why}"
+
+
+def send_speed_after_target(link: VehicleLink, speed_mps: float) -> bool:
+    """Ask for ``speed_mps`` of horizontal speed (0: keep the vehicle's WPNAV_SPEED); True once asked.
+
+    Call it right after a position target, never before the leg's first: ArduCopter's GUIDED sets the
+    speed back to WPNAV_SPEED when it enters position control from velocity control or the take-off
+    (mode_guided.cpp, ``pva_control_start``), so a DO_CHANGE_SPEED sent first is lost.
+    """
+    if speed_mps > 0:
+        link.set_speed(speed_mps)
+        return True
+    return False

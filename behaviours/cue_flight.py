@@ -16,7 +16,8 @@ import math
 import numpy as np
 import py_trees
 
-from behaviours.base import CommandingBehaviour, FlightMode, VehicleBehaviour, optional_input, stall_message, state_port
+from behaviours.base import (CommandingBehaviour, FlightMode, VehicleBehaviour, optional_input, send_speed_after_target,
+                             stall_message, state_port)
 from chaser_bt.control.cue_approach import approach_point
 from chaser_bt.control.progress import ClosingWatch
 from chaser_bt.cue import TargetCue
@@ -79,9 +80,7 @@ class FlyToCue(CommandingBehaviour):
         self._sent_goal: np.ndarray | None = None
         self._sent_at = -math.inf
         self._progress = ClosingWatch(window_s=self.get_input("stall_s"))
-        speed = self.get_input("speed_mps")
-        if speed > 0:
-            self._link().set_speed(speed)
+        self._speed_sent = False
 
     def update(self) -> Status:
         state, now = self.state, self._now()
@@ -101,6 +100,7 @@ class FlyToCue(CommandingBehaviour):
         if moved > self.get_input("retarget_m") or now - self._sent_at >= self.get_input("resend_s"):
             self._link().goto_enu(plan.goal_enu, plan.yaw_enu_rad)
             self._sent_goal, self._sent_at = plan.goal_enu, now
+            self._speed_sent = self._speed_sent or send_speed_after_target(self._link(), self.get_input("speed_mps"))
         self._progress.observe(now, state.position_enu, plan.goal_enu)
         if self._progress.stalled(now):
             self.feedback_message = stall_message(self._progress, now, plan.distance_m, state)

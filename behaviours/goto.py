@@ -7,7 +7,7 @@ import enum
 import numpy as np
 import py_trees
 
-from behaviours.base import CommandingBehaviour, stall_message, state_port
+from behaviours.base import CommandingBehaviour, send_speed_after_target, stall_message, state_port
 from chaser_bt.control.progress import ProgressWatch
 from chaser_bt.geo import GeoPoint
 from chaser_bt.tree import input_port, register_behaviour
@@ -48,9 +48,7 @@ class GoTo(CommandingBehaviour):
         self._target_enu: np.ndarray | None = None
         self._last_sent_s = -np.inf
         self._progress = ProgressWatch(window_s=self.get_input("stall_s"))
-        speed = self.get_input("speed_mps")
-        if speed > 0:
-            self._link().set_speed(speed)
+        self._speed_sent = False
 
     def update(self) -> Status:
         state, link = self.state, self._link()
@@ -69,6 +67,7 @@ class GoTo(CommandingBehaviour):
         if now - self._last_sent_s >= self.get_input("resend_s"):
             link.goto_enu(self._target_enu)
             self._last_sent_s = now
+            self._speed_sent = self._speed_sent or send_speed_after_target(link, self.get_input("speed_mps"))
         distance = float(np.linalg.norm(state.position_enu - self._target_enu))
         if distance <= self.get_input("acceptance_radius_m"):
             self.feedback_message = f"arrived ({distance:.1f} m)"

@@ -783,15 +783,24 @@ class Guided(FlightMode):
                               p["WPNAV_ACCEL_Z"] * 0.01)
             return
         if ap.pc.z_reached():
-            self.sub = GuidedSubmode.POS
+            self._enter_position_control()
         ap.output_tracking(dt)
+
+    def _enter_position_control(self) -> None:
+        """ArduCopter's ``pos_control_start`` (through ``pva_control_start``, mode_guided.cpp): a change into
+        position control from another submode (take-off done, velocity, attitude) sets the horizontal
+        speed back to WPNAV_SPEED, so a DO_CHANGE_SPEED sent before that change is lost; one sent after
+        it holds for every later position target."""
+        if self.sub != GuidedSubmode.POS:
+            self.speed_override = None
+        self.sub = GuidedSubmode.POS
 
     def set_position(self, ap: ModeHost, x: float, y: float, z: float, yaw: float | None) -> None:
         if self.sub == GuidedSubmode.IDLE:
             return  # on the ground GUIDED needs a takeoff command first, as ArduCopter
         if self.sub == GuidedSubmode.ATT:
             ap.reset_controller()
-        self.sub = GuidedSubmode.POS
+        self._enter_position_control()
         p = ap.p
         pc = ap.pc
         pc.set_pos_xyz(x, y, z, self.speed_xy(ap), p["WPNAV_SPEED_UP"] * 0.01, p["WPNAV_SPEED_DN"] * 0.01,

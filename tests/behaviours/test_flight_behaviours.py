@@ -42,6 +42,25 @@ def test_goto_reaches_an_enu_waypoint(vehicle):
     np.testing.assert_allclose(vehicle.sim.truth.pos_enu, [40, -25, 18], atol=2.5)
 
 
+def test_goto_speed_holds_after_velocity_control(vehicle):
+    """A GoTo's speed_mps reaches the autopilot after its first position target: ArduCopter (and the
+    simulator, like it) sets the speed back to WPNAV_SPEED, 10 m/s, on entering position control from
+    velocity control, so a speed sent first would be lost and the leg flown at 10 m/s."""
+    take_off(vehicle, 12)
+    vehicle.link.velocity_enu([3.0, 0.0, 0.0])  # velocity control, as after a follow or a launch
+    vehicle.run_until(lambda: False, 2.0)
+    runner = runner_for(vehicle, "GoTo: {waypoint: [400, 0, 12], speed_mps: 14}")
+    speeds = []
+
+    def tick() -> bool:
+        runner.tick_if_due()
+        speeds.append(float(np.hypot(*vehicle.sim.truth.vel_enu[:2])))
+        return runner.finished
+
+    vehicle.run_until(tick, 20.0)
+    assert max(speeds) == pytest.approx(14.0, abs=0.6)
+
+
 def test_goto_reaches_a_global_waypoint(vehicle, scenario):
     take_off(vehicle, 12)
     target = vehicle.sim.autopilot.frame.to_geodetic((-30.0, 35.0, 0.0))  # 30 m west, 35 m north of home

@@ -341,3 +341,23 @@ def test_same_seed_flies_the_same_flight(airborne, run_for):
     other.set_position_target([20.0, 20.0, 25.0])
     run_for(other, 10.0)
     assert not np.array_equal(runs[0], other.truth.pos_enu)
+
+
+def test_a_speed_set_before_a_change_into_position_control_is_lost_as_on_arducopter(airborne, run_for):
+    """ArduCopter's GUIDED resets the horizontal speed to WPNAV_SPEED (10 m/s here) when it enters position
+    control from velocity control (mode_guided.cpp: pos_control_start -> pva_control_start), so a
+    DO_CHANGE_SPEED sent while flying velocity targets does not reach the next position target; sent
+    after the first position target, it holds."""
+    ap = airborne()
+    assert ap.set_velocity_target([2.0, 0.0, 0.0])
+    run_for(ap, 2.0)
+    assert ap.set_speed(4.0).accepted  # while in velocity control: lost at the change
+    ap.set_position_target([600.0, 0.0, 20.0])
+    speeds = []
+    run_for(ap, 25.0, each=lambda a: speeds.append(_horizontal(a.truth.vel_enu)))
+    assert np.median(speeds[-500:]) == pytest.approx(10.0, abs=0.3)
+    assert ap.set_speed(4.0).accepted  # now in position control: holds
+    ap.set_position_target([0.0, 0.0, 20.0])
+    speeds.clear()
+    run_for(ap, 40.0, each=lambda a: speeds.append(_horizontal(a.truth.vel_enu)))
+    assert np.median(speeds[-1000:]) == pytest.approx(4.0, abs=0.2)
