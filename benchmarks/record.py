@@ -7,9 +7,11 @@ which prints its one JSON line on stdout as before and, with ``--record``, appen
 
 - ``benchmark``, ``script``, ``what``, ``against``, ``units``, ``headline``: the declaration;
 - ``command``: the command line as run, from the repository root;
-- ``commit`` and ``dirty``: ``git rev-parse HEAD``, and whether tracked files differed from it (the store
-  itself and the page made from it aside);
-- ``date_utc``: when the run ended, ISO 8601 to the second;
+- ``commit`` and ``dirty``: ``git rev-parse HEAD`` when the run started (this module's import), and whether
+  tracked files differed from it then or at the end, or another commit was checked out by the end (the
+  store itself and the page made from it aside): a run spans minutes, and code changed under it is not
+  the commit's;
+- ``started_utc``, ``date_utc``: when the run started and ended, ISO 8601 to the second;
 - ``machine``: ``cpu`` (model), ``cores``, ``gpu`` (``nvidia-smi``'s names, or ``none``), ``os``, ``python``;
 - ``result``: the JSON line, as an object.
 
@@ -38,6 +40,10 @@ RESULTS = ROOT / "benchmarks" / "results"
 PAGE = ROOT / "docs" / "results.md"
 NOT_CODE = ("benchmarks/results", "docs/results.md")  # what a record changes: not what makes a tree dirty
 log = logging.getLogger("benchmarks.record")
+
+
+def _utc_now() -> str:
+    return dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
 @dataclass(frozen=True)
@@ -97,7 +103,9 @@ def make_record(line: dict, benchmark: Benchmark, *, script: str | None = None, 
     """The record of one run: the declaration, the provenance and the line."""
     argv = list(sys.argv if argv is None else argv)
     script = script or (argv[0] if argv else "")
-    commit, dirty = git_state(root)
+    commit, dirty = _AT_START[0] if root == ROOT else git_state(root)
+    end_commit, end_dirty = git_state(root)
+    dirty = None if dirty is None else bool(dirty or end_dirty or end_commit != commit)
     return {
         "benchmark": benchmark.name,
         "script": _from_root(script, root),
@@ -108,7 +116,8 @@ def make_record(line: dict, benchmark: Benchmark, *, script: str | None = None, 
         "command": command_line(argv, root),
         "commit": commit,
         "dirty": dirty,
-        "date_utc": dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "started_utc": _AT_START[1],
+        "date_utc": _utc_now(),
         "machine": machine(),
         "result": line,
     }
@@ -202,3 +211,6 @@ def _from_root(path: str, root: Path) -> str:
         return full.relative_to(root).as_posix()
     except ValueError:
         return path
+
+
+_AT_START = (git_state(ROOT), _utc_now())  # the checkout a benchmark starts from, when it imports this module

@@ -215,6 +215,15 @@ def test_record_appends_the_line_and_its_provenance(tmp_path, capsys):
     assert "| [tiny](#tiny) | plain arithmetic |" in text and "| `total` | 6 | the sum |" in text
 
 
+def test_a_record_names_the_commit_it_started_from_and_calls_a_change_under_it_dirty(monkeypatch):
+    """A run that started on one commit and ended on another was measured on neither alone: the record
+    keeps the commit it started from, and says dirty."""
+    bench = record.Benchmark("tiny", "A tiny benchmark.", against="plain arithmetic")
+    monkeypatch.setattr(record, "_AT_START", (("0" * 40, False), "2026-01-01T00:00:00Z"))
+    row = record.make_record({"name": "tiny"}, bench, argv=["benchmarks/bench_tiny.py"])
+    assert row["commit"] == "0" * 40 and row["dirty"] is True and row["started_utc"] == "2026-01-01T00:00:00Z"
+
+
 def test_without_record_the_line_is_only_printed(tmp_path, capsys):
     bench = record.Benchmark("tiny", "Tiny.", against="plain arithmetic")
     assert record.emit({"total": 1}, bench, False, results=tmp_path / "results", page=tmp_path / "p.md") is None
