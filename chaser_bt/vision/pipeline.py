@@ -171,7 +171,6 @@ class VisionPipeline:
         self.last_estimate: TargetEstimate | None = None
         self.focused_frames = 0
         self.cue_fit = CueFit(self.config.cue_fit_tau_s, self.config.cue_switch_sigma)
-        self.cue_switches = 0  # times the followed track was given up for one that fits the cue better
         self._seen_attitude: Rotation | None = None  # the camera's attitude at the last frame processed
         # (time, where the detector looks; None: the whole frame) of detector frames planned, not processed yet.
         self._unseen_detections: list[tuple[float, Region | None]] = []
@@ -409,15 +408,16 @@ class VisionPipeline:
         return kept
 
     def _select(self, tracks: list[Track], attitude: Rotation, t: float) -> Track:
-        """The current track while it lives; else, shortly after an estimate, the track nearest its
-        bearing (the target does not jump across the image); else the most confirmed, then confident."""
+        """The current track while it lives, unless it drifted off the cue and another track fits the cue
+        clearly better (:class:`~chaser_bt.vision.cue_fit.CueFit`); else, shortly after an estimate, the
+        track nearest its bearing (the target does not jump across the image); else the most confirmed,
+        then confident."""
         if self.track is not None:
             same = next((tr for tr in tracks if tr.track_id == self.track.track_id), None)
             if same is not None:
                 other = self.cue_fit.better_than(same.track_id, [tr.track_id for tr in tracks])
                 if other is None:
                     return same
-                self.cue_switches += 1
                 log.info("vision: track %d drifted off the cue (%.1f sigma); following track %d (%.1f sigma) at %.1f s",
                          same.track_id, self.cue_fit.offset(same.track_id), other, self.cue_fit.offset(other), t)
                 return next(tr for tr in tracks if tr.track_id == other)
