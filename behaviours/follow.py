@@ -16,9 +16,10 @@ target data is stale, and hover on halt or failure (CommandingBehaviour).
 from __future__ import annotations
 
 import enum
+import logging
 import math
 from dataclasses import replace
-from typing import Any, Iterator
+from typing import Any, Iterator, Mapping
 
 import numpy as np
 import py_trees
@@ -32,6 +33,7 @@ from chaser_bt.target_telemetry import TargetTelemetry
 from chaser_bt.tree import NodeKind, input_port, output_port, register_behaviour
 
 Status = py_trees.common.Status
+log = logging.getLogger(__name__)
 
 TELEMETRY_KEY = "/target/telemetry"
 #: The stick mapping's parameters; where ArduCopter 4.7 renamed one, both names (a vehicle answers one).
@@ -107,25 +109,39 @@ class _Follow(CommandingBehaviour):
         """Further FollowConfig fields from this leaf's own ports."""
         return {}
 
+    @classmethod
+    def check_ports(cls, values: Mapping[str, Any], child_count: int) -> list[tuple[str, str]]:
+        """Settings the controller refuses are a validation problem where the literals show them."""
+        slant, floor = values.get("slant_range_m"), values.get("min_range_m")
+        if isinstance(slant, (int, float)) and isinstance(floor, (int, float)) and floor >= slant > 0:
+            return [("min_range_m", f"min_range_m must be below slant_range_m ({slant:g} m), got {floor:g}")]
+        return []
+
     def initialise(self) -> None:
         out = self._output = self.get_input("output")
         self._mode = "ALT_HOLD" if out is FollowOutput.ALT_HOLD else "GUIDED"
-        config = FollowConfig(slant_range_m=self.get_input("slant_range_m"),
-                              elevation_rad=math.radians(self.get_input("elevation_deg")),
-                              use_roll=self.get_input("use_roll"), feed_forward=self.get_input("feed_forward"),
-                              stale_after_s=self.get_input("stale_after_s"),
-                              max_lean_rad=math.radians(self.get_input("max_lean_deg")) or None,
-                              measured_rates=self.get_input("measured_rates"), min_range_m=self.get_input("min_range_m"),
-                              **self.config_options())
+        self._mode_cmd = None
+        self._stale_since: float | None = None
+        self._sent_t: float | None = None
+        try:  # settings wired from the blackboard are only known now
+            config = FollowConfig(slant_range_m=self.get_input("slant_range_m"),
+                                  elevation_rad=math.radians(self.get_input("elevation_deg")),
+                                  use_roll=self.get_input("use_roll"), feed_forward=self.get_input("feed_forward"),
+                                  stale_after_s=self.get_input("stale_after_s"),
+                                  max_lean_rad=math.radians(self.get_input("max_lean_deg")) or None,
+                                  measured_rates=self.get_input("measured_rates"),
+                                  min_range_m=self.get_input("min_range_m"), **self.config_options())
+        except ValueError as e:
+            self.controller = None
+            self._refused = f"follow settings refused: {e}"
+            log.error("%s: %s", self.name, self._refused)
+            return
         link = self._link()
         for names in STICK_PARAMS:  # the stick mapping is the vehicle's: ask for its parameters
             if not any(name in link.params for name in names):
                 for name in names:
                     link.request_param(name)
         self.controller = FollowController(config, StickMap.from_params(link.params))
-        self._mode_cmd = None
-        self._stale_since: float | None = None
-        self._sent_t: float | None = None
         if self.state.mode != self._mode:
             if self._mode == "ALT_HOLD":
                 link.rc_override(1500, 1500, 1500, 1500)  # centred throttle before ALT_HOLD or it sinks
@@ -133,6 +149,9 @@ class _Follow(CommandingBehaviour):
 
     def update(self) -> Status:
         link, state, now = self._link(), self.state, self._now()
+        if self.controller is None:
+            self.feedback_message = self._refused
+            return Status.FAILURE
         if self._mode_cmd is not None:
             if not self._mode_cmd.done:
                 self.feedback_message = f"switching to {self._mode}"

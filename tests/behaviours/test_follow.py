@@ -195,3 +195,18 @@ def test_target_telemetry_cue_writes_the_intruders_position(follower):
     cue = py_trees.blackboard.Blackboard.get("/target/telemetry")
     assert cue.source == "telemetry" and cue.track_id == 2
     assert np.linalg.norm(cue.position_enu - follower.sim.intruders[0].pos) < 1.0
+
+
+def test_a_minimum_range_not_below_the_set_point_is_refused_by_validate_and_fails_the_leaf_in_flight(follower):
+    """Where the literals show it, `validate` names the port; wired from the blackboard, the leaf fails
+    with the reason (the mission falls back, the tick goes on) instead of raising in the tick."""
+    from chaser_bt.tree import TreeError, load_tree_text
+    text = "version: 1\ntrees:\n  T:\n    FollowGlobal: {slant_range_m: 12.0, min_range_m: 14.0}\n"
+    with pytest.raises(TreeError, match=r"<test>:4:\d+: FollowGlobal: min_range_m must be below slant_range_m \(12 m\), got 14"):
+        load_tree_text(text, source="<test>")
+    py_trees.blackboard.Blackboard.set("/floor", 14.0)  # the root key @floor
+    write, _ = _feed(follower)
+    runner = runner_for(follower, 'FollowGlobal: {output: guided, slant_range_m: 12.0, min_range_m: "{@floor}"}')
+    _fly_for(follower, runner, 2.0, each=write)
+    assert runner.finished and runner.status == py_trees.common.Status.FAILURE
+    assert "follow settings refused: min_range_m must be in [0, slant_range_m)" in runner.tip_message()
