@@ -12,7 +12,9 @@ watches a :class:`~chaser_bt.vehicle.VehicleLink` from both sides:
   and the STATUSTEXT that came with it (ArduCopter names its failsafes: "GCS Failsafe", ...): of
   what the vehicle said since the last mode change at NOTICE or above, the most severe (a failsafe
   is CRITICAL or a WARNING; "Arming motors" and "EKF3 IMU0 is using GPS" are INFO: never a reason),
-  the latest of those.
+  the latest of those. ArduCopter may send the text just after the heartbeat that shows the new mode
+  (its RC failsafe did, on the real SITL): a change that came with no reason takes the first one
+  within :data:`LATE_REASON_S` after it.
 
 A request that the vehicle has not honoured within :data:`PENDING_HEARTBEATS` heartbeats is
 forgotten (a refused request must not excuse a later operator's switch to the same mode); the
@@ -24,19 +26,21 @@ for too).
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Callable
 
 from chaser_bt.vehicle.connection import mavutil
 from chaser_bt.vehicle.state import mode_name
 
-__all__ = ["ForeignModeChange", "ModeAuthority", "PENDING_HEARTBEATS"]
+__all__ = ["ForeignModeChange", "LATE_REASON_S", "ModeAuthority", "PENDING_HEARTBEATS"]
 
 log = logging.getLogger(__name__)
 mavlink = mavutil.mavlink
 
 #: Heartbeats (about seconds, at ArduCopter's 1 Hz) a mode request stays pending.
 PENDING_HEARTBEATS = 5
+#: Seconds after a foreign change without a reason in which the vehicle's next reason still explains it.
+LATE_REASON_S = 2.0
 _MODE_OF_COMMAND = {mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH: "RTL", mavlink.MAV_CMD_NAV_LAND: "LAND"}
 
 
@@ -69,6 +73,7 @@ class ModeAuthority:
         self._reason: tuple[int, str] | None = None  # (severity, text) of the likeliest reason so far
         self.foreign: list[ForeignModeChange] = []
         self.own_changes = 0
+        self._unexplained: int | None = None  # index in foreign of a change still waiting for its reason
 
     @classmethod
     def attach(cls, link: Any, clock: Callable[[], float]) -> ModeAuthority:
@@ -118,6 +123,8 @@ class ModeAuthority:
                 text = msg.text if isinstance(msg.text, str) else bytes(msg.text).decode(errors="replace")
                 severity = int(getattr(msg, "severity", mavlink.MAV_SEVERITY_INFO))
                 notice = severity <= mavlink.MAV_SEVERITY_NOTICE  # a reason, not chatter ("Arming motors" is INFO)
+                if notice and self._explain_late(text.rstrip("\x00")):
+                    return
                 if notice and (self._reason is None or severity <= self._reason[0]):  # more severe, or as severe and later
                     self._reason = (severity, text.rstrip("\x00"))
                 return
@@ -136,6 +143,7 @@ class ModeAuthority:
                 why = self._reason[1] if self._reason is not None else ""
                 change = ForeignModeChange(float(self._clock()), previous, mode, armed, why)
                 self.foreign.append(change)
+                self._unexplained = None if why else len(self.foreign) - 1
                 log.warning("mode %s -> %s not commanded by the mission (%s)", previous, mode, change.why or "no reason given")
             self._pending.pop(mode, None)
             self._reason = None
@@ -145,3 +153,13 @@ class ModeAuthority:
             self._pending[requested] += 1
             if self._pending[requested] > PENDING_HEARTBEATS:
                 del self._pending[requested]
+
+    def _explain_late(self, text: str) -> bool:
+        """Give ``text`` to the last foreign change if it came without a reason less than ``LATE_REASON_S``
+        ago; whether it did."""
+        i, self._unexplained = self._unexplained, None
+        if i is None or float(self._clock()) - self.foreign[i].t > LATE_REASON_S:
+            return False
+        self.foreign[i] = replace(self.foreign[i], why=text)
+        log.warning("mode %s -> %s: %s", self.foreign[i].previous, self.foreign[i].mode, text)
+        return True

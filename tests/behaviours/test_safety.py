@@ -112,6 +112,30 @@ def test_mode_changes_the_mission_asked_for_are_its_own_and_others_are_foreign()
     assert authority.foreign_since(19.9, armed_only=True) == change  # in flight, only the RTL counted
 
 
+def test_a_reason_sent_just_after_the_mode_change_still_explains_it():
+    """ArduCopter's RC failsafe showed RTL in a heartbeat before its text: a change with no reason takes
+    the first NOTICE-or-worse text within LATE_REASON_S (2 s), and only that one; later, or after a
+    change that had its reason, a text is kept for the next change as before."""
+    t = [10.0]
+    authority = ModeAuthority(lambda: t[0], lambda: 1)
+    authority.on_receive(_heartbeat(GUIDED))
+    authority.on_receive(_heartbeat(RTL))
+    assert authority.foreign[-1].why == ""
+    t[0] = 11.5
+    authority.on_receive(_Msg(mav.MAVLink_statustext_message(6, b"EKF3 IMU0 is using GPS")))  # INFO: never a reason
+    authority.on_receive(_Msg(mav.MAVLink_statustext_message(2, b"Radio Failsafe")))
+    authority.on_receive(_Msg(mav.MAVLink_statustext_message(4, b"PreArm: Radio failsafe on")))
+    assert authority.foreign[-1].why == "Radio Failsafe"
+    authority.on_receive(_heartbeat(LOITER))  # the next change: the later text was kept for it
+    assert authority.foreign[-1].why == "PreArm: Radio failsafe on"
+    authority.on_receive(_heartbeat(GUIDED))
+    t[0] = 14.0  # too late for the GUIDED change
+    authority.on_receive(_Msg(mav.MAVLink_statustext_message(4, b"GCS Failsafe")))
+    assert authority.foreign[-1].why == ""
+    authority.on_receive(_heartbeat(RTL))
+    assert authority.foreign[-1].why == "GCS Failsafe"
+
+
 def test_a_request_the_vehicle_never_honoured_expires_after_some_heartbeats():
     authority = ModeAuthority(lambda: 0.0, lambda: 1)
     authority.on_receive(_heartbeat(GUIDED))
