@@ -105,7 +105,8 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                         "accepted before or after the subcommand")
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}",
                         help="print the installed chaser-bt's version and exit")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
+                                help="what to do: one of the commands below")
 
     def command(name: str, handler: Callable[[argparse.Namespace], int], help_: str) -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=help_, description=help_)
@@ -139,18 +140,19 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     p.add_argument("--show-ticks", action="store_true", help="print the tree with statuses whenever a status changes")
     p.add_argument("--radar", type=arg.host_port, metavar="HOST:PORT", help="receive ground-radar datagrams here (docs/radar.md; default: no radar)")
     p.add_argument("--radar-pose", type=arg.input_file, metavar="FILE.json",
-                   help="the radar's pose: `chaser-bt calibrate --json` output (required with --radar)")
+                   help="the radar's pose: `chaser-bt calibrate --json` output (required with --radar; default: none)")
     p.add_argument("--radar-time-offset", type=float, default=0.0, metavar="S", help="radar time + S = mission time, s (default 0)")
     p.add_argument("--radar-key", type=arg.input_file, metavar="FILE",
                    help="believe only radar datagrams signed with this key (the ground stream's HMAC; a MAVLink "
-                        "signing key file)")
+                        "signing key file; default: none, unsigned datagrams are believed)")
     p.add_argument("--radar-from", action="append", type=arg.ip_address, metavar="IP",
-                   help="accept radar datagrams only from this address (repeat for several); without this or "
-                        "--radar-key anyone who reaches the port can cue the mission")
+                   help="accept radar datagrams only from this address (repeat for several; default: any address); "
+                        "without this or --radar-key anyone who reaches the port can cue the mission")
     p.add_argument("--uplink", type=arg.host_port, metavar="HOST:PORT",
                    help="listen here for the operator's signed designations (docs/ground.md; default: no uplink)")
     p.add_argument("--uplink-key", type=arg.input_file, metavar="FILE",
-                   help="the uplink's key, MAVLink signing's format (required with --uplink: it is never unsigned)")
+                   help="the uplink's key, MAVLink signing's format (required with --uplink: it is never unsigned; "
+                        "default: none)")
     p.add_argument("--uplink-from", action="append", type=arg.ip_address, metavar="IP",
                    help="believe uplink commands only from this address (repeat for several; default: any that signs)")
     p.add_argument("--reload-from", type=Path, metavar="FILE",
@@ -246,7 +248,8 @@ exit codes: 0 done, 1 the mission failed or the vehicle could not be flown, 2 ba
 
 def _signing_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--signing-key", type=Path, metavar="FILE",
-                   help="MAVLink 2 signing key file: a line of 64 hex digits, or a passphrase (key = SHA-256, as MAVProxy's signing setup)")
+                   help="MAVLink 2 signing key file: a line of 64 hex digits, or a passphrase (key = SHA-256, as MAVProxy's "
+                        "signing setup; default: none, unsigned)")
     p.add_argument("--signing-link-id", default=0, metavar="N", type=arg.non_negative_int, help="signing link id (default 0)")
 
 

@@ -23,10 +23,10 @@ def add_command(subparsers: argparse._SubParsersAction) -> None:
     d = ChaseInputs()
     help_ = "recommend the follow position (slant range, elevation) for a camera and a target; draw the trade-off"
     p = subparsers.add_parser("chase-geometry", help=help_, description=help_)
-    p.add_argument("--hfov-deg", type=float, default=math.degrees(d.hfov_rad), help="camera horizontal FOV, deg, in (0, 180) (default %(default).4g)")
-    p.add_argument("--vfov-deg", type=float, default=math.degrees(d.vfov_rad), help="camera vertical FOV, deg, in (0, 180) (default %(default).4g)")
-    p.add_argument("--width-px", type=int, default=d.width_px, help="image width, px (default %(default)s)")
-    p.add_argument("--height-px", type=int, default=d.height_px, help="image height, px (default %(default)s)")
+    p.add_argument("--hfov-deg", type=float, default=math.degrees(d.hfov_rad), metavar="DEG", help="camera horizontal FOV, deg, in (0, 180) (default %(default).4g)")
+    p.add_argument("--vfov-deg", type=float, default=math.degrees(d.vfov_rad), metavar="DEG", help="camera vertical FOV, deg, in (0, 180) (default %(default).4g)")
+    p.add_argument("--width-px", type=int, default=d.width_px, metavar="PX", help="image width, px (default %(default)s)")
+    p.add_argument("--height-px", type=int, default=d.height_px, metavar="PX", help="image height, px (default %(default)s)")
     p.add_argument("--target-size-m", type=float, nargs=3, metavar=("WIDTH", "DEPTH", "HEIGHT"),
                    default=[d.target_width_m, d.target_depth_m, d.target_height_m], help=f"target box, m, each > 0 (default {d.target_width_m:g} {d.target_depth_m:g} {d.target_height_m:g})")
     p.add_argument("--speed-h", type=float, default=d.speed_h_mps, metavar="M/S", help="target horizontal dash speed, m/s (default %(default)s)")

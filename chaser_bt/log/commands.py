@@ -38,8 +38,8 @@ def add_command(subparsers) -> None:
     p = subparsers.add_parser("replay", help="tick a tree on a recorded flight (MCAP) and compare with the recording",
                               description="Feed a recorded flight's telemetry, radar datagrams and camera frames into a "
                                           "tree; print its status changes and the correlator's associations.")
-    p.add_argument("log", type=Path, help="flight log (.mcap) written with --record")
-    p.add_argument("tree", type=Path, help="tree to tick (the recorded one, or a changed one)")
+    p.add_argument("log", type=Path, metavar="LOG", help="flight log (.mcap) written with --record")
+    p.add_argument("tree", type=Path, metavar="TREE", help="tree to tick (the recorded one, or a changed one)")
     p.add_argument("--correlator", choices=("gated", "alg1"),
                    help="re-run the radar with this correlator: gated (ours) or alg1 (the paper's Algorithm 1; default: as recorded)")
     p.add_argument("--check", action="store_true",
@@ -51,15 +51,15 @@ def add_command(subparsers) -> None:
     p = subparsers.add_parser("plot", help="draw the paper's figures from a flight log",
                               description="Draw the overhead track, the relative geometry and the belief maps of a "
                                           "recorded flight as PNG files.")
-    p.add_argument("log", type=Path, help="flight log (.mcap)")
+    p.add_argument("log", type=Path, metavar="LOG", help="flight log (.mcap)")
     p.add_argument("--out", type=output_dir, metavar="DIR", help="folder for the PNGs (default: LOG without .mcap, plus _plots)")
     p.set_defaults(handler=run_plot)
 
     p = subparsers.add_parser("btlog", help="write a recorded flight (MCAP) as a Groot2 log (.btlog) by replaying it",
                               description="Replay a recorded flight through its tree and write every status transition "
                                           "as BT.CPP's FileLogger2 does (.btlog: Groot2's log player opens it).")
-    p.add_argument("log", type=Path, help="flight log (.mcap) written with --record")
-    p.add_argument("tree", type=Path, help="the tree that flew it")
+    p.add_argument("log", type=Path, metavar="LOG", help="flight log (.mcap) written with --record")
+    p.add_argument("tree", type=Path, metavar="TREE", help="the tree that flew it")
     p.add_argument("-o", "--out", type=_btlog_file, metavar="FILE.btlog", help="the Groot2 log (default: LOG with .btlog)")
     p.set_defaults(handler=run_btlog)
 

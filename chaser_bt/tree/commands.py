@@ -29,11 +29,11 @@ def add_command(subparsers: argparse._SubParsersAction) -> None:
 def add_convert_command(subparsers: argparse._SubParsersAction) -> None:
     help_ = "convert a tree between YAML and BehaviorTree.CPP v4 XML (by extension), checking it round-trips"
     p = subparsers.add_parser("convert", help=help_, description=help_)
-    p.add_argument("source", type=Path, metavar="SOURCE", help="tree file to read (.xml = BT.CPP XML, else YAML)")
-    p.add_argument("target", type=Path, metavar="TARGET", help="tree file to write (.xml = BT.CPP XML, else YAML); "
+    p.add_argument("source", type=Path, metavar="TREE", help="tree file to read (.xml = BT.CPP XML, else YAML)")
+    p.add_argument("target", type=Path, metavar="OUT", help="tree file to write (.xml = BT.CPP XML, else YAML); "
                    "relative include paths are rewritten for its folder")
     p.add_argument("--force", action="store_true",
-                   help="allow TARGET to be SOURCE itself (rewritten in place, its comments lost; default: refused)")
+                   help="allow OUT to be TREE itself (rewritten in place, its comments lost; default: refused)")
     p.set_defaults(handler=_convert)
 
 

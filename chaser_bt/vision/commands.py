@@ -308,10 +308,10 @@ def add_command(subparsers) -> None:
                    help="weights file to write; a .ckpt beside it makes it resumable (default detector.pt)")
     t.add_argument("--steps", type=positive_int, default=1500, metavar="N", help="optimiser steps in all, counting resumed ones (default 1500)")
     t.add_argument("--batch", type=positive_int, default=24, metavar="N", help="images per step (default 24)")
-    t.add_argument("--seed", type=seed, default=0, metavar="N", help="seed of the batches and initial weights (default 0)")
+    t.add_argument("--seed", type=seed, default=1, metavar="N", help="seed of the batches and initial weights (default 1)")
     t.add_argument("--threads", type=positive_int, default=1, metavar="N", help="torch threads (default 1)")
-    t.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
-    t.add_argument("--lr", default=2e-3, type=positive_float, help="peak learning rate (default 2e-3; lower when fine-tuning)")
+    t.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint (default: resume from it)")
+    t.add_argument("--lr", default=2e-3, type=positive_float, metavar="RATE", help="peak learning rate (default 2e-3; lower when fine-tuning)")
     t.add_argument("--init", default=None, metavar="FILE.pt",
                    help="fine-tune from these weights (same classes) instead of from scratch (default: from scratch)")
     t.add_argument("--widths", default=None, type=stage_widths, metavar="W,W,W,W,W",
@@ -319,14 +319,14 @@ def add_command(subparsers) -> None:
                         "output (default: the --init weights' widths, or 16,32,48,96,128)")
     t.add_argument("--small-box-px", default=0.0, type=non_negative_float, metavar="PX",
                    help="over-sample images with a box narrower than this, px at 416 scale (default 0: no over-sampling)")
-    t.add_argument("--small-weight", type=positive_float, default=3.0, help="how many times more often such images are drawn (default 3)")
+    t.add_argument("--small-weight", type=positive_float, default=3.0, metavar="X", help="how many times more often such images are drawn (default 3)")
     t.add_argument("--obj-iou", type=non_negative_float, default=0.0, metavar="G",
                    help="objectness target 1 - G + G * IoU of the predicted box (YOLOv5's gr; default 0)")
-    t.add_argument("--mixup", type=probability, default=0.1, metavar="P",
+    t.add_argument("--mixup", type=probability, default=0.1, metavar="FRAC",
                    help="share of mosaics blended with a second one, boxes of both (YOLOv4/v5's mixup; default 0.1)")
     t.add_argument("--mixup-beta", type=positive_float, default=32.0, metavar="A",
                    help="mixup weight drawn from Beta(A, A); 32 keeps it near 0.5 (default 32)")
-    t.add_argument("--blur", type=probability, default=0.3, metavar="P",
+    t.add_argument("--blur", type=probability, default=0.3, metavar="FRAC",
                    help="share of mosaics blurred, half by motion (3-9 px, any direction), half Gaussian (sigma 0.5-1.5 px) (default 0.3)")
     t.set_defaults(handler=_train)
     help_ = "train the box refiner (second stage) on YOLO folders of full-size frames"
@@ -336,11 +336,12 @@ def add_command(subparsers) -> None:
                    help="weights file; ship it beside the detector as <detector>_refiner.pt (required)")
     r.add_argument("--per-label", type=positive_int, default=6, metavar="N", help="jittered crops per labelled target (default 6)")
     r.add_argument("--steps", type=positive_int, default=4000, metavar="N", help="optimiser steps (default 4000)")
-    r.add_argument("--seed", type=seed, default=0, metavar="N", help="seed of the crops and initial weights (default 0)")
+    r.add_argument("--seed", type=seed, default=1, metavar="N", help="seed of the crops and initial weights (default 1)")
     r.add_argument("--threads", type=positive_int, default=2, metavar="N", help="torch threads (default 2)")
     r.add_argument("--negatives-from", default=None, metavar="FILE.pt",
-                   help="detector weights: train a scoring refiner, its negatives this detector's false boxes on --data")
-    r.add_argument("--negative-conf", type=probability, default=0.05, metavar="P",
+                   help="detector weights: train a scoring refiner, its negatives this detector's false boxes on --data "
+                        "(default: none, a refiner that only re-places boxes and does not score them)")
+    r.add_argument("--negative-conf", type=probability, default=0.05, metavar="SCORE",
                    help="lowest score of the false boxes mined with --negatives-from (default 0.05)")
     r.set_defaults(handler=_train_refiner)
     help_ = "11-point AP@0.5, IoU, P/R/F1 at 0.25 and frames/s of the detector on a YOLO folder"
@@ -353,7 +354,8 @@ def add_command(subparsers) -> None:
     e.add_argument("--class-agnostic", action="store_true",
                    help="score every box as one class (footage labelled 'drone'; default: the folder's classes must be the detector's)")
     e.add_argument("--failures", default=None, type=output_file, metavar="FILE.png",
-                   help="draw the highest-scoring false boxes and the largest misses at 0.25, at the first size, into this picture")
+                   help="draw the highest-scoring false boxes and the largest misses at 0.25, at the first size, into this "
+                        "picture (default: none)")
     e.add_argument("--limit", type=non_negative_int, default=0, metavar="N", help="use the first N images only (default 0: all)")
     e.add_argument("--backend", choices=["auto", "torch", "onnx", "onnx-int8"], default="auto",
                    help="auto: the int8 ONNX copy when a current .int8.onnx file is beside the weights, else the "
@@ -383,16 +385,16 @@ def add_command(subparsers) -> None:
              "footage into train/ and val/, split by contiguous chunks; or the Halmstad drone-detection dataset "
              "into train/, val/ and its fixed held-out test/, split by video")
     f = subparsers.add_parser("import-footage", help=help_, description=help_)
-    f.add_argument("export", help="CVAT export (zip or unpacked folder), or the Halmstad dataset's folder")
+    f.add_argument("export", metavar="EXPORT", help="CVAT export (zip or unpacked folder), or the Halmstad dataset's folder")
     f.add_argument("--format", choices=["auto", "cvat", "halmstad"], default="auto",
                    help="what the export is (default auto: halmstad when the folder holds V_*_LABELS.mat files)")
     f.add_argument("--out", required=True, type=output_dir, metavar="DIR",
                    help="folder to write train/, val/ (test/) and import.json into (required)")
     f.add_argument("--every", type=positive_int, default=None, metavar="N",
                    help="Halmstad: write every N-th frame of each video (default 10)")
-    f.add_argument("--parts", nargs="+", choices=["train", "val", "test"], default=None,
-                   help="Halmstad: which parts to write (default: all three)")
-    f.add_argument("--prefix", default="", help="start of every written file's name, one per flight sharing --out (default: none)")
+    f.add_argument("--parts", nargs="+", choices=["train", "val", "test"], default=None, metavar="PART",
+                   help="Halmstad: which parts to write, of train, val and test (default: all three)")
+    f.add_argument("--prefix", default="", metavar="TEXT", help="start of every written file's name, one per flight sharing --out (default: none)")
     f.add_argument("--video", default=None, metavar="FILE",
                    help="take the frames from this video: export frame_NNNNNN = video frame N (default: the export's images)")
     f.add_argument("--video-start", type=non_negative_int, default=None, metavar="N",
@@ -401,10 +403,11 @@ def add_command(subparsers) -> None:
                    help="video frames per export frame, the task's frame step (default 1)")
     f.add_argument("--chunk", type=positive_int, default=None, metavar="N",
                    help="consecutive frames per chunk of the split (default 150: 5 s at 30 frames/s)")
-    f.add_argument("--val-frac", type=non_negative_float, default=0.2, metavar="F",
+    f.add_argument("--val-frac", type=non_negative_float, default=0.2, metavar="FRAC",
                    help="share of chunks (Halmstad: of each kind's videos) held out for validation, 0..1 (default 0.2)")
-    f.add_argument("--seed", type=seed, default=0, metavar="N", help="which chunks are held out (default 0)")
-    f.add_argument("--classes", nargs="+", default=None,
+    f.add_argument("--seed", type=seed, default=1, metavar="N",
+                   help="which chunks (Halmstad: which videos) are held out (default 1)")
+    f.add_argument("--classes", nargs="+", default=None, metavar="CLASS",
                    help="output classes in id order, the detector's, e.g. s1000 phantom (default: the export's labels; "
                         "Halmstad: drone, the other kinds written as hard negatives)")
     f.add_argument("--rename", nargs="+", default=None, metavar="LABEL=CLASS",

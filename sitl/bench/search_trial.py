@@ -310,8 +310,8 @@ def add_command(subparsers) -> None:
     p.add_argument("--horizon", type=int, default=5, metavar="H",
                    help=f"RHC moves per path, h, 1-{MAX_HORIZON}: the exact search takes about 8x longer per move "
                         f"(seconds per plan at h = {MAX_HORIZON}) (default 5)")
-    p.add_argument("--gamma", type=float, default=0.9, help="RHC discount, in (0, 1] (default 0.9)")
-    p.add_argument("--seed", type=seed_argument, default=0, metavar="N", help="simulator seed (also draws the target's path; default 0)")
+    p.add_argument("--gamma", type=float, default=0.9, metavar="X", help="RHC discount, in (0, 1] (default 0.9)")
+    p.add_argument("--seed", type=seed_argument, default=1, metavar="N", help="simulator seed (also draws the target's path; default 1)")
     p.add_argument("--search-s", type=float, default=120.0, metavar="S", help="seconds of search before the trial stops (default 120)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(handler=run_search_trial)

@@ -18,8 +18,8 @@ log = logging.getLogger(__name__)
 
 def add_groot2_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--groot2", type=groot2_port, nargs="?", const=DEFAULT_PORT, metavar="PORT",
-                        help=f"serve the tree and its live statuses to Groot2 on PORT and PORT+1, 1-65534 (default "
-                             f"{DEFAULT_PORT}, as BT.CPP's Groot2Publisher)")
+                        help=f"serve the tree and its live statuses to Groot2 on PORT and PORT+1, 1-65534 (PORT default "
+                             f"{DEFAULT_PORT}, as BT.CPP's Groot2Publisher; default: off)")
     parser.add_argument("--groot2-host", default=LOOPBACK, metavar="ADDRESS",
                         help=f"address the Groot2 monitor listens on (default {LOOPBACK}; 0.0.0.0 for every interface)")
 
