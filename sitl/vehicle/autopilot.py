@@ -74,6 +74,8 @@ MAV_LANDED_STATE_LANDING = 4
 FORCE_ARM_MAGIC = 21196  # MAV_CMD_COMPONENT_ARM_DISARM param2 that skips the checks
 
 _SEV_CRITICAL, _SEV_WARNING, _SEV_NOTICE, _SEV_INFO = 2, 4, 5, 6
+#: Mode::name() of ArduCopter's mode.h, where a STATUSTEXT quotes it ("EKF Failsafe: changed to Land Mode").
+_MODE_TITLES = {0: "Stabilize", 2: "Altitude Hold", 4: "Guided", 5: "Loiter", 6: "RTL", 9: "Land", 17: "Brake"}
 _RC_NEUTRAL = (1500, 1500, 1000, 1500) + (1500,) * 12  # ch1-16 with no transmitter
 _UINT16_MAX = 65535
 
@@ -450,11 +452,15 @@ class Autopilot:
         self._radio_failsafe()
         # EKF failsafe: position lost while flying in a mode that needs it
         if not self.ekf_ok and self._gps_lost_at is not None and not self.fs_ekf and self.armed:
+            # Copter::ekf_check, then failsafe_ekf_event: its words, then its action's
             self.fs_ekf = True
-            self._text(_SEV_CRITICAL, "EKF Failsafe")
+            self._text(_SEV_CRITICAL, "EKF variance: position lost")
             action = int(p["FS_EKF_ACTION"])
-            if not self.land_complete and (self._mode.requires_position or action == 3):
+            if action and not self.land_complete and (self._mode.requires_position or action == 3):
                 self._change_mode(2 if action == 2 else 9)
+                self._text(_SEV_CRITICAL, f"EKF Failsafe: changed to {_MODE_TITLES.get(self._mode.number, self.mode)} Mode")
+            else:
+                self._text(_SEV_CRITICAL, "EKF Failsafe")
         elif self.fs_ekf and self.ekf_ok:
             self.fs_ekf = False
             self._text(_SEV_CRITICAL, "EKF Failsafe Cleared")
@@ -501,10 +507,14 @@ class Autopilot:
             self._batt_low_since = self.time_s
         if self.fs_battery or (low_v and not low_mah and self.time_s - self._batt_low_since < p["BATT_LOW_TIMER"]):
             return
+        # AP_BattMonitor::check_failsafes (armed only: a disarmed low battery is a pre-arm failure), then
+        # Copter::handle_battery_failsafe's announcement and action
+        if not self.armed:
+            return
         self.fs_battery = True
-        self._text(_SEV_CRITICAL, f"Battery 1 is low {volt:.2f}V used {b.consumed_mah:.0f} mAh")
-        if self.armed:
-            self._failsafe_action(int(p["BATT_FS_LOW_ACT"]), {1: 9, 2: 6, 3: 6, 4: 9, 6: 6})
+        self._text(_SEV_WARNING, f"Battery 1 is low {volt:.2f}V used {b.consumed_mah:.0f} mAh")
+        self._text(_SEV_WARNING, "Battery Failsafe - Disarming" if self.land_complete else "Battery Failsafe")
+        self._failsafe_action(int(p["BATT_FS_LOW_ACT"]), {1: 9, 2: 6, 3: 6, 4: 9, 6: 6})
 
     def _fence_check(self) -> None:
         """Copter::fence_check: breaches are recorded armed or not, acted on only while armed."""

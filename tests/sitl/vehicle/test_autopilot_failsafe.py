@@ -130,7 +130,7 @@ def test_gps_loss_in_guided_triggers_the_ekf_failsafe_and_lands(make_ap, run_for
     frozen = ap.position_estimate().pos_enu[:2]
     run_for(ap, 1.0)
     assert not ap.ekf_ok and ap.fs_ekf and ap.mode == "LAND"
-    assert (2, "EKF Failsafe") in ap.pop_statustexts()
+    assert ap.pop_statustexts()[-2:] == [(2, "EKF variance: position lost"), (2, "EKF Failsafe: changed to Land Mode")]
     assert np.array_equal(ap.position_estimate().pos_enu[:2], frozen)
     assert not ap.request_mode(LOITER).accepted
     run_for(ap, 60.0)
