@@ -16,13 +16,13 @@ import tempfile
 from pathlib import Path
 from typing import Callable, Iterable, NoReturn
 
-from chaser_bt.shipped import NotShipped, resolve_scenario, resolve_tree
+from chaser_bt.shipped import NotShipped, resolve_scenario, resolve_scenarios, resolve_tree
 
 __all__ = [
     "PROG", "ChaserParser", "did_you_mean", "seed", "positive_float", "non_negative_float", "positive_int",
     "non_negative_int", "port", "listen_port", "groot2_port", "tick_rate", "host_port", "connection_string",
     "DEFAULT_DESIGNATION_COMPID", "designation_compid",
-    "geodetic_point", "file_problem", "input_file", "tree_file", "scenario_file", "output_file", "output_dir",
+    "geodetic_point", "file_problem", "input_file", "tree_file", "scenario_file", "scenario_set", "output_file", "output_dir",
     "add_verbose_everywhere", "AUTOPILOTS", "add_autopilot_arguments",
 ]
 
@@ -234,6 +234,14 @@ def scenario_file(text: str) -> Path:
     """A scenario: a file's path (checked when it is read), or a shipped scenario's name (``patrol``)."""
     try:
         return resolve_scenario(text)
+    except NotShipped as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def scenario_set(text: str) -> Path:
+    """A scenario file or a folder of them: a path, or a shipped scenario's or folder's name (``hard``)."""
+    try:
+        return resolve_scenarios(text)
     except NotShipped as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 

@@ -165,3 +165,20 @@ def test_rehearse_reads_a_shipped_tree_and_scenario_by_name(monkeypatch):
     assert (args.tree, args.scenario) == (TREES / "takeoff_land.yaml", SCENARIOS / "patrol.yaml")
     args = parser.parse_args(["sitl", "--scenario", "chase_radar_off"])
     assert args.scenario == SCENARIOS / "chase_radar_off.yaml"
+
+
+def test_a_campaign_takes_a_shipped_tree_and_a_shipped_scenario_or_folder_by_name(tmp_path, monkeypatch):
+    """``campaign chase --scenarios hard``: the tree's file, the shipped folder; a path still wins, an unknown name
+    is refused naming the shipped ones."""
+    import chaser_bt.cli as cli
+
+    parser = cli._parser(["campaign"])
+    args = parser.parse_args(["campaign", "chase", "--scenarios", "hard", "--out", str(tmp_path / "c")])
+    assert (args.tree, args.scenarios) == (TREES / "chase.yaml", SCENARIOS / "hard")
+    args = parser.parse_args(["campaign", "chase", "--scenarios", "retask/chase_then_sar", "--out", str(tmp_path / "c")])
+    assert args.scenarios == SCENARIOS / "retask" / "chase_then_sar.yaml"
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "hard").mkdir()  # a folder of the user's own: the path, not the shipped folder
+    assert shipped.resolve_scenarios("hard") == Path("hard")
+    with pytest.raises(NotShipped, match="shipped scenarios: chase, "):
+        shipped.resolve_scenarios("soft")

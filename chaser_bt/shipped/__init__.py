@@ -11,7 +11,7 @@ Where they are:
 
 A name is a shipped file's path in its folder without the suffix (``chase``: ``chase.yaml`` before
 ``chase.xml``; ``hard/crossing``), or with it (``chase.xml``). :func:`resolve_tree` and
-:func:`resolve_scenario` take what a user typed: an existing file or folder is that path, as before; else a
+:func:`resolve_scenario` (and :func:`resolve_scenarios`, which also knows shipped folders: ``hard``) take what a user typed: an existing file or folder is that path, as before; else a
 shipped name is its file; else anything written as a path (it has a ``/``) is that path, and whoever reads it
 reports it missing; and a word that is none of these raises :class:`NotShipped`, one line naming the shipped
 ones.
@@ -26,7 +26,7 @@ from pathlib import Path
 
 __all__ = [
     "NotShipped", "TREE_SUFFIXES", "SCENARIO_SUFFIXES", "trees_dir", "scenarios_dir", "shipped_trees",
-    "shipped_scenarios", "shipped_files", "resolve_tree", "resolve_scenario",
+    "shipped_scenarios", "shipped_files", "resolve_tree", "resolve_scenario", "resolve_scenarios",
 ]
 
 #: Tree files, in the order a bare stem prefers them (``chase`` is chase.yaml; chase.xml is its BT.CPP copy).
@@ -103,6 +103,16 @@ def resolve_tree(text: str | os.PathLike) -> Path:
 def resolve_scenario(text: str | os.PathLike) -> Path:
     """The scenario file ``text`` means: a path as given, or a shipped scenario's file."""
     return _resolve(text, "scenario", scenarios_dir(), shipped_scenarios())
+
+
+def resolve_scenarios(text: str | os.PathLike) -> Path:
+    """A scenario file or a folder of them: a path as given, a shipped folder's name (``hard``), or a
+    shipped scenario's name (``retask/chase_then_sar``)."""
+    folder = scenarios_dir()
+    word = os.fspath(text).replace(os.sep, "/").strip("/")
+    if not Path(text).exists() and folder is not None and word and (folder / word).is_dir():
+        return folder / word
+    return resolve_scenario(text)
 
 
 def _resolve(text: str | os.PathLike, what: str, folder: Path | None, shipped: dict[str, list[Path]]) -> Path:

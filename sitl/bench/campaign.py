@@ -15,7 +15,8 @@ A run **succeeds** (:class:`SuccessRule`) when it ends well (``landed``, ``follo
 (its trace saw one, or a FOV share was scored), vision acquired it and kept it in the camera's FOV for at
 least ``min_followed_s`` seconds after acquisition, and the object followed at the end is the one the
 mission designated (``custody_at_end``: following someone else is no success); where a run reports
-``sar_found`` (not None), it must be true.
+``sar_found`` (not None), it must be true. A scenario's scheduled retasks (``retask``) must all have
+been taken, and a chase retasked to a search is held to both: the chase until the retask, the find after.
 """
 
 from __future__ import annotations
@@ -44,7 +45,7 @@ from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
-from chaser_bt.cli_args import add_autopilot_arguments, output_dir, positive_int
+from chaser_bt.cli_args import add_autopilot_arguments, output_dir, positive_int, scenario_set, tree_file
 from chaser_bt.log.trace import FlightTrace
 
 __all__ = [
@@ -62,6 +63,7 @@ __all__ = [
     "followed_s",
     "lock_out_dir",
     "parse_seeds",
+    "retasks_missed",
     "run_campaign",
     "run_one",
 ]
@@ -246,16 +248,25 @@ class SuccessRule:
     ok_outcomes: tuple[str, ...] = _OK_OUTCOMES
 
     def __call__(self, row: Mapping[str, Any]) -> bool:
-        if row.get("outcome") not in self.ok_outcomes:
+        if row.get("outcome") not in self.ok_outcomes or retasks_missed(row):
             return False
-        if row.get("sar_found") is not None:  # a search and rescue: the person must be found
-            return bool(row["sar_found"])
-        if _had_target(row):  # a chase: the target must be acquired and followed
+        found = row.get("sar_found")
+        if found is not None and not found:  # a search and rescue: the person must be found
+            return False
+        # A chase (a validated radar track launched it: t_airborne_s), also one retasked to a search
+        # later: the target must be acquired and followed. A search alone has no radar track.
+        if _had_target(row) and (found is None or row.get("t_airborne_s") is not None):
             if row.get("t_acquire_s") is None or row.get("custody_at_end") is False:
                 return False
             followed = row.get("followed_s")
             return followed is None or followed >= self.min_followed_s
         return True
+
+
+def retasks_missed(row: Mapping[str, Any]) -> int:
+    """How many of the run's scheduled retasks were not taken (refused, or never offered before the run ended)."""
+    taken = sum(1 for r in row.get("retasks") or () if r.get("accepted"))
+    return max(0, int(row.get("retasks_scheduled") or 0) - taken)
 
 
 def _had_target(row: Mapping[str, Any]) -> bool:
@@ -736,6 +747,16 @@ def aggregate(rows: Sequence[Mapping[str, Any]], success: Callable[[Mapping[str,
     found = [bool(r["sar_found"]) for r in rows if r.get("sar_found") is not None]
     if found:
         extra["sar_found_frac"] = sum(found) / len(found)
+    retasked = [r for r in rows if r.get("retasks_scheduled")]
+    if retasked:
+        offered = [t for r in retasked for t in r.get("retasks") or ()]
+        extra["retasks"] = {
+            "runs": len(retasked),
+            "scheduled": sum(int(r["retasks_scheduled"]) for r in retasked),
+            "taken": sum(1 for t in offered if t.get("accepted")),
+            "missed": sum(retasks_missed(r) for r in retasked),
+            "refusals": dict(Counter(str(t.get("message")) for t in offered if not t.get("accepted"))),
+        }
     extra["false_successes"] = sum(1 for r in rows if false_success(r))
     extra["unsafe_ends"] = sum(1 for r in rows if r.get("final_state") in UNSAFE_STATES)
     if any(r.get("chaos_fault") for r in rows):
@@ -848,7 +869,8 @@ def _campaign_markdown(config, rows, agg, images, markdown_table) -> str:
         f"{', no camera' if not config.camera else ''}{', quick' if config.quick else ''}); "
         f"**success {agg['success']}/{agg['runs']} = {format(agg['success_frac'] or 0.0, '.0%')}**.", "",
         f"Success: outcome in {', '.join(rule.ok_outcomes)}; with a target, acquired and kept in the camera's FOV "
-        f"≥ {rule.min_followed_s:g} s after acquisition, the last object followed the designated one; where `sar_found` is reported, found.", "",
+        f"≥ {rule.min_followed_s:g} s after acquisition, the last object followed the designated one; where `sar_found` is reported, found; "
+        f"every retask the scenario schedules taken.", "",
         "## Figures against the paper", "",
         markdown_table(("key", "runs", "median", "p25–p75", "p10–p90", "paper", "median beats the paper"), [
             (k, m["n"], m["median"], _range(m["p25"], m["p75"]), _range(m["p10"], m["p90"]), m["paper"], m["median_beats_paper"])
@@ -862,6 +884,13 @@ def _campaign_markdown(config, rows, agg, images, markdown_table) -> str:
     ]
     if "sar_found_frac" in agg:
         parts += ["", f"Search and rescue: found in {agg['sar_found_frac']:.0%} of runs."]
+    if "retasks" in agg:
+        rt = agg["retasks"]
+        parts += ["", "## Retasks", "",
+                  f"{rt['runs']} run(s) with retasks scheduled: {rt['taken']} of {rt['scheduled']} taken, "
+                  f"{rt['missed']} not taken (refused, or the run ended first)."]
+        if rt["refusals"]:
+            parts += ["", markdown_table(("refused because", "times"), sorted(rt["refusals"].items()))]
     parts += ["", "## Safety", "",
               f"False successes (the mission said `completed`; the truth crashed, needed a failsafe or left the aircraft "
               f"unsafe): **{agg['false_successes']}**. Runs ending with the aircraft not safe ({', '.join(UNSAFE_STATES)}, "
@@ -937,8 +966,10 @@ def add_command(subparsers) -> None:
     """``chaser-bt campaign``: see the module docstring."""
     p = subparsers.add_parser("campaign", help="rehearse a tree over many scenarios and seeds in parallel; write a report",
                               description=__doc__.splitlines()[0])
-    p.add_argument("tree", type=Path, metavar="TREE", help="mission tree file: YAML (docs/trees.md) or BT.CPP v4 XML")
-    p.add_argument("--scenarios", required=True, type=Path, metavar="DIR_OR_FILE", help="a scenario file or a folder of them (required)")
+    p.add_argument("tree", type=tree_file, metavar="TREE",
+                   help="mission tree file: YAML (docs/trees.md) or BT.CPP v4 XML, or a shipped tree's name (chase)")
+    p.add_argument("--scenarios", required=True, type=scenario_set, metavar="DIR_OR_FILE",
+                   help="a scenario file or a folder of them, or a shipped one's name: chase, hard, retask/chase_then_sar (required)")
     p.add_argument("--seeds", type=_seed_list, default="1-50", metavar="LIST",
                    help=f"e.g. 1-50, 1,3,7 or 1-10,20; each seed once, integers >= 0, at most {MAX_SEEDS} of them "
                         "(default 1-50)")
@@ -954,7 +985,7 @@ def add_command(subparsers) -> None:
                         "radio, another ground station's LOITER); the report counts false successes and unsafe ends")
     p.add_argument("--fresh", action="store_true", help="fly every run again, ignoring stored results")
     p.add_argument("--report-only", action="store_true", help="fly nothing: write the report of the runs stored so far (give --quick/--no-camera as they were flown)")
-    p.add_argument("--min-followed-s", type=float, default=SuccessRule.min_followed_s,
+    p.add_argument("--min-followed-s", type=float, default=SuccessRule.min_followed_s, metavar="S",
                    help="success needs the target in the FOV this long after acquisition (default %(default)s)")
     p.add_argument("--min-success", type=float, default=0.0, metavar="FRAC",
                    help="exit 1 when the success rate is below FRAC (default 0: any finished campaign exits 0)")

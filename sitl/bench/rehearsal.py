@@ -93,6 +93,7 @@ class RehearsalReport:
     followed_s_by_object: dict[str, float] | None = None  # seconds each object was followed
     designated_object: str | None = None  # the object the mission designated (truth: its radar track's)
     retasks: list[dict] | None = None  # every retask offered (chaser_bt.mission.retask.Retask.as_dict), taken or not
+    retasks_scheduled: int = 0  # retasks the scenario schedules (``retask``); a campaign's success needs each taken
     sensors: list[str] = field(default_factory=list)  # the sensors the tree requires or uses (of those the rehearsal provides)
     radar_pose: str | None = None  # calibrated | surveyed
     radar_pose_err_m: float | None = None  # mission's radar position minus the truth
@@ -314,6 +315,7 @@ def rehearse(
         radar_yaw_err_deg=pose_err[1],
         sensors_wall_s=round(sensors_wall, 3),
         retasks=[r.as_dict() for r in runner.retasks] or None,
+        retasks_scheduled=len(scenario.retasks),
     )
     meta: dict = {"tree": tree.name, "scenario": scenario.name, "seed": seed, "outcome": outcome}
     people = people_enu(sim.scenario, sim_time_s)

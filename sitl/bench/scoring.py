@@ -27,7 +27,7 @@ Only this module (and the rehearsal that calls it) reads the simulator's truth. 
   30-50 m, depression 30-50 deg, truth); ``followed_s_by_object``, seconds each object was followed;
   ``custody_at_end``, whether the last object followed is the designated one.
 - ``radar_assoc_frac`` / ``wrong_assoc_frac``: 1 s windows of flight with the ownship in the radar's
-  coverage and the radar on; in each, the association the mission's correlator held for most ticks:
+  coverage, the radar on and the flying tree reading it; in each, the association the mission's correlator held for most ticks:
   a track that follows the ownship (right), another track (wrong) or none (paper 0.917); the radar
   model's truth says which track follows what.
 
@@ -52,6 +52,7 @@ from chaser_bt.geo import heading_to_enu_yaw
 from chaser_bt.log.animation import FrameKeeper
 from chaser_bt.log.trace import BeliefSnapshot, FlightTrace, TraceEvent
 from chaser_bt.mission.outcome import PHASE_KEY
+from chaser_bt.mission.resources import used_resources
 from chaser_bt.radar.correlator import Association, TrackCorrelator, TrackPoints
 from chaser_bt.vision.camera import CameraModel
 
@@ -408,6 +409,7 @@ class RehearsalObserver:
         self.has_radar = sensors.radar is not None
         self._recorder: AssociationRecorder | None = None
         self._labels: dict[int, str] = {}
+        self._radar_tree: tuple[Any, bool] | None = None  # (the flying tree's root, whether it reads the radar)
         if sensors.radar is not None:
             self._recorder = AssociationRecorder(sensors.radar.correlator)
             sensors.radar.correlator = self._recorder
@@ -547,10 +549,19 @@ class RehearsalObserver:
         radar = self.sim.radar
         if radar is None or self._recorder is None:
             return
-        rec.radar_counted = bool(airborne and radar.is_on(self.sim.time_s) and radar.in_coverage(own))
+        rec.radar_counted = bool(airborne and radar.is_on(self.sim.time_s) and radar.in_coverage(own)
+                                 and self._tree_uses_radar())
         r = self._recorder
         if r.last_t is not None and rec.t - r.last_t <= 1.0 and r.last_id is not None:
             rec.radar_state = 1 if self._labels.get(r.last_id) == "ownship" else -1
+
+    def _tree_uses_radar(self) -> bool:
+        """Whether the tree flying now reads the radar (a retask may have replaced it with one that does not:
+        its windows are then no association's to score)."""
+        root = self.runner.tree.root
+        if self._radar_tree is None or self._radar_tree[0] is not root:
+            self._radar_tree = (root, "radar" in used_resources(root))
+        return self._radar_tree[1]
 
     def _note_events(self, rec: TickRecord, mode: str, phase: str) -> None:
         t = rec.t

@@ -21,6 +21,7 @@ import numpy as np
 import yaml
 
 from chaser_bt.geo import GeoPoint
+from chaser_bt.shipped import NotShipped, resolve_tree
 from sitl.vehicle.airframe import AirframeParams
 from sitl.vehicle.params import ParamStore
 from sitl.vehicle.physics import WindParams
@@ -167,6 +168,18 @@ def load_scenario(path: str | Path) -> Scenario:
     except RecursionError:
         raise ScenarioError(f"{p}: not a scenario: YAML nested too deeply to read") from None
     return Scenario.from_dict(doc, source=str(p))
+
+
+def _retask_tree(base: Path, tree: str) -> Path | None:
+    """A retask's tree file: ``tree`` relative to the scenario's folder, else the shipped tree of that name
+    (``sar``: found in a checkout and in an installed wheel alike); None when it is neither."""
+    if (base / tree).is_file():
+        return base / tree
+    try:
+        file = resolve_tree(tree)
+    except NotShipped:
+        return None
+    return file if file.is_file() else None
 
 
 def _finite(v: float) -> bool:
@@ -592,8 +605,9 @@ class _Parser:
         return tuple(sorted(out, key=lambda ev: ev.at_s))
 
     def retasks(self, d: Any) -> tuple[ScheduledRetask, ...]:
-        """``retask: [{at_s, tree, subtree}]``: tree files relative to the scenario's folder, existing, in
-        time order; ``subtree`` (optional) names the subtree of the flying tree the file replaces."""
+        """``retask: [{at_s, tree, subtree}]``: tree files relative to the scenario's folder (or shipped trees'
+        names: ``sar``), existing, in time order; ``subtree`` (optional) names the subtree of the flying tree
+        the file replaces."""
         if d is None:
             return ()
         if not isinstance(d, list):
@@ -605,13 +619,15 @@ class _Parser:
             e = self.mapping(item, path, ("at_s", "tree", "subtree"))
             tree = e.get("tree")
             if not isinstance(tree, str) or not tree:
-                raise self.fail(f"{path}.tree", "a tree file, relative to the scenario's folder", tree)
-            if not (base / tree).is_file():
-                raise self.fail(f"{path}.tree", f"an existing tree file (no {base / tree})", tree)
+                raise self.fail(f"{path}.tree", "a tree file, relative to the scenario's folder, or a shipped tree's name",
+                                tree)
+            file = _retask_tree(base, tree)
+            if file is None:
+                raise self.fail(f"{path}.tree", f"an existing tree file (no {base / tree}) or a shipped tree's name", tree)
             subtree = e.get("subtree")
             if subtree is not None and (not isinstance(subtree, str) or not subtree.strip()):
                 raise self.fail(f"{path}.subtree", "the tree ID of a subtree of the flying tree", subtree)
-            out.append(ScheduledRetask(self.number(e, "at_s", path, None, minimum=0.0), base / tree, subtree))
+            out.append(ScheduledRetask(self.number(e, "at_s", path, None, minimum=0.0), file, subtree))
         return tuple(sorted(out, key=lambda r: r.at_s))
 
     # -- intruders: Phantom-like drones with their own MAVLink (sitl/world/intruders.py) ----------------

@@ -141,6 +141,7 @@ def test_a_rehearsal_retasks_in_the_air_and_a_broken_retask_changes_nothing(tmp_
         assert json.loads(r)["subtree"] is None
         _assert_fits_retask_schema(json.loads(r))
     refused, taken = report.retasks
+    assert report.retasks_scheduled == 2
     assert not refused["accepted"] and "broken.yaml" in refused["message"] and refused["t"] == pytest.approx(20, abs=0.1)
     assert taken["accepted"] and taken["old_hash"] == refused["old_hash"] == tree_hash(HOVER_LONG.encode())
     assert taken["new_hash"] == tree_hash(LAND.encode())
@@ -557,6 +558,17 @@ def test_a_scenario_retask_may_name_a_subtree(tmp_path):
                                 ScheduledRetask(30.0, tmp_path / "leg.yaml", "Leg"))
     with pytest.raises(ScenarioError, match="retask.0..subtree"):
         _subtree_scenario(tmp_path, "[{at_s: 30, tree: leg.yaml, subtree: 3}]")
+
+
+def test_a_scenario_retask_may_name_a_shipped_tree(tmp_path):
+    from chaser_bt.shipped import resolve_tree
+    from sitl.world.scenario import ScenarioError, ScheduledRetask
+
+    scenario = _subtree_scenario(tmp_path, "[{at_s: 90, tree: sar}]")
+    assert scenario.retasks == (ScheduledRetask(90.0, resolve_tree("sar")),)
+    assert scenario.retasks[0].tree.name == "sar.yaml"
+    with pytest.raises(ScenarioError, match=r"retask.0..tree.*shipped tree's name"):
+        _subtree_scenario(tmp_path, "[{at_s: 90, tree: no_such_tree}]")
 
 
 def test_retasks_chain_on_one_runner_whole_and_subtree_alike(tmp_path):

@@ -117,6 +117,33 @@ def test_summary_uses_linear_percentiles():
     assert summarise([])["median"] is None
 
 
+def test_a_retasked_run_needs_every_scheduled_retask_taken_and_both_missions_done():
+    rule = SuccessRule(min_followed_s=20.0)
+    taken = {"t": 90.0, "accepted": True, "message": "tree a -> b, aircraft held at the hand-over"}
+    refused = {"t": 90.0, "accepted": False, "message": "retask sar.yaml (scenario at 90 s): the autopilot is flying RTL"}
+    # A search alone: its person is a target in the trace, but no radar track launched it.
+    search = {"outcome": "landed", "sar_found": True, "has_target": True, "t_airborne_s": None, "t_acquire_s": None}
+    assert rule(search)
+    # A chase retasked at 90 s to a search: the chase (acquired, followed 25 s) and the find both count.
+    both = {**search, "t_airborne_s": 11.6, "t_acquire_s": 2.7, "followed_s": 25.0, "custody_at_end": True,
+            "retasks": [taken], "retasks_scheduled": 1}
+    assert rule(both)
+    assert not rule({**both, "sar_found": False})  # the search after the retask found no one
+    assert not rule({**both, "t_acquire_s": None})  # the chase before it never acquired the intruder
+    assert not rule({**both, "followed_s": 12.0})
+    assert not rule({**both, "retasks": [refused]})  # the retask was refused: not what the scenario meant
+    assert not rule({**both, "retasks": None})  # the run ended before the retask was due
+    assert not rule({**both, "retasks": [taken], "retasks_scheduled": 2})
+    assert rule({**both, "retasks": [refused, taken], "retasks_scheduled": 1})  # refused once, then taken
+    assert cm.retasks_missed({**both, "retasks": [refused], "retasks_scheduled": 2}) == 2
+    assert cm.retasks_missed({"outcome": "landed"}) == 0
+
+    agg = aggregate([both, {**both, "retasks": [refused]}, {**both, "retasks": [refused, refused]}, search], rule)
+    assert agg["success"] == 2  # the first run and the search alone
+    assert agg["retasks"] == {"runs": 3, "scheduled": 3, "taken": 1, "missed": 2, "refusals": {refused["message"]: 3}}
+    assert "retasks" not in aggregate([search], rule)
+
+
 def test_following_another_drone_at_the_end_is_no_success():
     row = {"outcome": "following", "t_acquire_s": 3.0, "followed_s": 60.0, "has_target": True}
     assert SuccessRule()(row) and SuccessRule()({**row, "custody_at_end": True})
