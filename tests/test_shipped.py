@@ -182,3 +182,13 @@ def test_a_campaign_takes_a_shipped_tree_and_a_shipped_scenario_or_folder_by_nam
     assert shipped.resolve_scenarios("hard") == Path("hard")
     with pytest.raises(NotShipped, match="shipped scenarios: chase, "):
         shipped.resolve_scenarios("soft")
+
+
+@pytest.mark.parametrize("name", list(shipped.shipped_scenarios()))
+def test_every_shipped_scenario_loads(name):
+    """Each scenario a user can name loads: its keys, its retasks' trees (files or shipped names) exist."""
+    from sitl.world.scenario import load_scenario
+
+    scenario = load_scenario(resolve_scenario(name))
+    for retask in scenario.retasks:
+        assert retask.tree.is_file()
