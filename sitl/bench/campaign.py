@@ -747,6 +747,8 @@ def aggregate(rows: Sequence[Mapping[str, Any]], success: Callable[[Mapping[str,
     found = [bool(r["sar_found"]) for r in rows if r.get("sar_found") is not None]
     if found:
         extra["sar_found_frac"] = sum(found) / len(found)
+        # a find reported in the wrong place (more than found_radius_m from everyone): the mission believed it
+        extra["sar_wrong_finds"] = sum(1 for r in rows if r.get("sar_found") is False and r.get("sar_find_error_m") is not None)
     retasked = [r for r in rows if r.get("retasks_scheduled")]
     if retasked:
         offered = [t for r in retasked for t in r.get("retasks") or ()]
@@ -883,7 +885,8 @@ def _campaign_markdown(config, rows, agg, images, markdown_table) -> str:
                          e.get("target_switches")) for s, e in agg["by_scenario"].items()]),
     ]
     if "sar_found_frac" in agg:
-        parts += ["", f"Search and rescue: found in {agg['sar_found_frac']:.0%} of runs."]
+        parts += ["", f"Search and rescue: found in {agg['sar_found_frac']:.0%} of runs; "
+                      f"{agg['sar_wrong_finds']} run(s) reported a find in the wrong place."]
     if "retasks" in agg:
         rt = agg["retasks"]
         parts += ["", "## Retasks", "",

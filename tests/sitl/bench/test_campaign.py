@@ -179,6 +179,9 @@ def test_aggregate_against_hand_worked_rows():
     assert "sar_found_frac" not in agg
     sar = [{"outcome": "landed", "sar_found": True}, {"outcome": "landed", "sar_found": False}, {"outcome": "landed", "sar_found": None}]
     assert aggregate(sar)["sar_found_frac"] == 0.5
+    assert aggregate(sar)["sar_wrong_finds"] == 0  # the one not found reported nothing
+    wrong = {"outcome": "landed", "sar_found": False, "sar_find_error_m": 27.9}
+    assert aggregate([*sar, wrong])["sar_wrong_finds"] == 1
 
 
 # -- running, storing, resuming -------------------------------------------------------------------
