@@ -4,6 +4,7 @@ time, and time to acquire (RHC h=5 vs max-belief, open airspace, camera on).
 Prints one JSON line: {"name": "search", "grid": [41, 41, 11], "plan_ms": {"1": ..., "5": ...}
 (median over planning states taken from kinematic searches), "plan_ms_p95": {...}, "plan_ms_max":
 {...}, "plan_cpu_ms" / "plan_cpu_ms_max" (process CPU time: the cost on an unshared machine),
+"plan_nodes" / "plan_nodes_max" (nodes the branch and bound expanded),
 the same with "_sitl" over beliefs and poses of the search-only scenario flown in the full
 simulator (sitl/bench/search_trial.py), "belief_update_ms": ...,
 "seeds": n, "t_acquire_s_rhc_median": ..., "t_acquire_s_maxbelief_median": ...}. Times are
@@ -38,6 +39,7 @@ BENCHMARK = Benchmark(
         "grid": "belief grid cells [x, y, z]",
         "plan_ms*": "ms of wall time per exact RHC plan, by horizon h (median; _p95, _max)",
         "plan_cpu_ms*": "ms of process CPU time per plan, by horizon h (median; _max): the cost on an unshared machine",
+        "plan_nodes*": "nodes the branch and bound expanded per plan, by horizon h (median; _max)",
         "planning_states": "planning states from kinematic searches", "planning_states_sitl": "planning states from the simulator",
         "belief_update_ms": "ms per belief update (dynamics and observation)",
         "seeds": "searches per planner for the time to acquire",
@@ -86,20 +88,22 @@ def sitl_states(seeds: int, search_s: float):
     return states
 
 
-def plan_times(states, h: int) -> tuple[list[float], list[float]]:
-    """Wall and process CPU time (ms) of the exact planner on each (sensor, belief, position, yaw).
+def plan_times(states, h: int) -> tuple[list[float], list[float], list[int]]:
+    """Wall and process CPU time (ms) of the exact planner on each (sensor, belief, position, yaw), and the
+    nodes its branch and bound expanded.
 
     CPU time is what the plan costs when the machine is not shared; wall time is what it costs now."""
     planners = {id(st[0]): RecedingHorizonPlanner(st[0], h, 0.9) for st in states}
     planners[id(states[0][0])].plan(*states[0][1:])  # compile / load the kernels outside the timing
-    wall, cpu = [], []
+    wall, cpu, nodes = [], [], []
     for sensor, p, pos, yaw in states:
         planner = planners[id(sensor)]
         t0, c0 = time.perf_counter(), time.process_time()
-        planner.plan(p, pos, yaw)
+        plan = planner.plan(p, pos, yaw)
         wall.append(1e3 * (time.perf_counter() - t0))
         cpu.append(1e3 * (time.process_time() - c0))
-    return wall, cpu
+        nodes.append(plan.nodes)
+    return wall, cpu, nodes
 
 
 def main() -> None:
@@ -116,12 +120,14 @@ def main() -> None:
 
     for h in range(1, 6):
         for suffix, sts in (("", [(sensor, *st) for st in states]), ("_sitl", sitl)):
-            wall, cpu = plan_times(sts, h)
+            wall, cpu, nodes = plan_times(sts, h)
             put(f"plan_ms{suffix}", h, np.median(wall))
             put(f"plan_ms{suffix}_p95", h, np.percentile(wall, 95))
             put(f"plan_ms{suffix}_max", h, np.max(wall))
             put(f"plan_cpu_ms{suffix}", h, np.median(cpu))
             put(f"plan_cpu_ms{suffix}_max", h, np.max(cpu))
+            put(f"plan_nodes{suffix}", h, np.median(nodes))
+            put(f"plan_nodes{suffix}_max", h, np.max(nodes))
 
     belief = BeliefGrid.from_cue(spec, TargetCue(0.0, np.array([50.0, 50.0, 60.0]), np.eye(3) * 400.0))
     dyn = GaussianDynamics()
