@@ -43,6 +43,7 @@ BENCHMARK = Benchmark(
         "*.builtin": "median over the built-in's runs", "*.ardupilot": "median over ArduCopter's runs",
         "*.ratio": "ArduCopter's median / the built-in's (target: within 0.9-1.1 for the chase)",
         "*.wilcoxon_p": "paired Wilcoxon signed-rank p over the seeds both flew (small: a real difference)",
+        "*.paired_seeds": "seeds both autopilots flew with a value",
         "chase_success.*": "share of chase runs that succeed", "sar_found.*": "share of SAR runs that found the person",
         "t_airborne_s.*": "s, validated radar track to take-off altitude", "t_acquire_s.*": "s, airborne to acquisition",
         "target_in_fov_frac.*": "share of follow ticks with the intruder in view",

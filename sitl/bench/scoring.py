@@ -27,9 +27,9 @@ Only this module (and the rehearsal that calls it) reads the simulator's truth. 
   30-50 m, depression 30-50 deg, truth); ``followed_s_by_object``, seconds each object was followed;
   ``custody_at_end``, whether the last object followed is the designated one.
 - ``radar_assoc_frac`` / ``wrong_assoc_frac``: 1 s windows of flight with the ownship in the radar's
-  coverage, the radar on and the flying tree reading it; in each, the association the mission's correlator held for most ticks:
-  a track that follows the ownship (right), another track (wrong) or none (paper 0.917); the radar
-  model's truth says which track follows what.
+  coverage, the radar on and the flying tree reading it; in each, the association the mission's
+  correlator held for most ticks: a track that follows the ownship (right), another track (wrong) or
+  none (paper 0.917); the radar model's truth says which track follows what.
 
 Each is None where it does not apply (no radar, no camera, no target, never airborne...).
 :func:`score_ticks` computes them from a list of :class:`TickRecord` (pure; tests build records by
