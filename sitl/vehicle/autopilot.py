@@ -189,6 +189,7 @@ class Autopilot:
         self.time_s = 0.0
         self._modes = make_modes()
         self._mode: FlightMode = self._modes[0]
+        self.mode_changes = 0  # counts entered modes: ArduCopter sends a HEARTBEAT on each (Copter::set_mode)
         self.armed = False
         self.armed_at = -math.inf
         self.land_complete = True
@@ -632,6 +633,7 @@ class Autopilot:
             self._text(_SEV_WARNING, f"Mode change to {mode.name} failed: {reason}")
             return False
         self._mode = mode
+        self.mode_changes += 1
         return True
 
     def request_mode(self, mode_number: int) -> CommandResult:

@@ -140,6 +140,7 @@ class MavlinkEndpoint:
         self.stats = EndpointStats()
         self.router: Router[Channel] = Router(self.sysid, COMPID)
         self._last_home = None
+        self._mode_changes_sent = autopilot.mode_changes
         self._boot_banner_due = True  # sent at boot, to every channel
         if mav_type is None:
             frame_class = int(autopilot.params.get("FRAME_CLASS"))
@@ -274,6 +275,11 @@ class MavlinkEndpoint:
             self._last_home = home
             if home is not None:
                 self._senders[mavlink2.MAVLINK_MSG_ID_HOME_POSITION]()  # sent whenever home is (re)set
+        if ap.mode_changes != self._mode_changes_sent:
+            # Copter::set_mode sends a HEARTBEAT at once, so a GCS sees the new mode without
+            # waiting for the 1 Hz stream
+            self._mode_changes_sent = ap.mode_changes
+            self._senders[mavlink2.MAVLINK_MSG_ID_HEARTBEAT]()
         senders = self._senders
         now = ap.time_s
         for channel in self.channels():

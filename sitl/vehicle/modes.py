@@ -291,6 +291,16 @@ class PositionController:
         self.gz = z
         self.speed_up, self.speed_dn, self.accel_z = speed_up, speed_dn, accel
 
+    def take_over_z(self, accel_est: float, thrust: float, roll: float, pitch: float) -> None:
+        """Take the vertical axis over from a throttle set outside the controller (AC_PosControl
+        D_init_controller): the target's acceleration is the measured one, within the vertical limit,
+        and the acceleration loop's integrator holds the present thrust, so the hand-over from the
+        take-off's throttle ramp neither drops the thrust to hover nor jumps it."""
+        self.taz = min(max(accel_est, -self.accel_z), self.accel_z)
+        tilt = max(math.cos(roll) * math.cos(pitch), 0.5)
+        ia = thrust * tilt / self.mass - GRAVITY - ACC_Z_P * (self.taz - accel_est)
+        self.ia = min(max(ia, -GRAVITY), GRAVITY)
+
     def set_climb(self, vz: float, accel: float) -> None:
         """Climb at ``vz`` m/s (negative descends), reached at ``accel`` m/s^2."""
         self.line = False
@@ -773,7 +783,8 @@ class Guided(FlightMode):
             self.takeoff_throttle = min(self.takeoff_throttle + dt / slew, 1.0)
             ph = ap.phys
             boost = max(math.cos(ph.roll) * math.cos(ph.pitch), 0.5)
-            ap.output(0.0, 0.0, 0.0, self.takeoff_throttle * ap.airframe.max_thrust_n / boost)
+            thrust = self.takeoff_throttle * ap.airframe.max_thrust_n / boost
+            ap.output(0.0, 0.0, 0.0, thrust)
             if (self.takeoff_throttle >= min(p["TKOFF_THR_MAX"], 0.9)
                     or ap.evz >= 0.1 * p["WPNAV_SPEED_UP"] * 0.01
                     or climb_accel >= 0.5 * p["WPNAV_ACCEL_Z"] * 0.01):
@@ -781,6 +792,7 @@ class Guided(FlightMode):
                 ap.pc.set_pos_xy(ap.ex, ap.ey, self.speed_xy(ap), p["WPNAV_ACCEL"] * 0.01)
                 ap.pc.set_alt(self.takeoff_z, p["WPNAV_SPEED_UP"] * 0.01, p["WPNAV_SPEED_DN"] * 0.01,
                               p["WPNAV_ACCEL_Z"] * 0.01)
+                ap.pc.take_over_z(climb_accel, thrust, ph.roll, ph.pitch)
             return
         if ap.pc.z_reached():
             self._enter_position_control()

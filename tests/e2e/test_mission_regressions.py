@@ -25,7 +25,7 @@ pytestmark = pytest.mark.slow
 
 # mission: (tree, scenario, seeds, camera, quick)
 MISSIONS = {
-    "chase": ("trees/chase.yaml", "sitl/scenarios/chase.yaml", (2, 4), True, True),
+    "chase": ("trees/chase.yaml", "sitl/scenarios/chase.yaml", (3, 4), True, True),
     "sar": ("trees/sar.yaml", "sitl/scenarios/sar.yaml", (2, 3), True, False),
     "patrol": ("trees/patrol.yaml", "sitl/scenarios/patrol.yaml", (1, 2, 3), False, False),
 }

@@ -214,3 +214,25 @@ def test_set_message_interval_rejects_intervals_outside_int32_or_below_minus_one
     gcs.command_ack(mav.MAV_CMD_GET_MESSAGE_INTERVAL, ATTITUDE)
     gcs.run(0.1)
     assert gcs.of_type("MESSAGE_INTERVAL")[-1].interval_us == 250_000  # unchanged
+
+
+def test_a_mode_change_sends_a_heartbeat_at_once_and_arming_does_not():
+    # Copter::set_mode sends MSG_HEARTBEAT on every entered mode; arming sends none. ArduCopter
+    # V4.8.0-dev SITL in our world (chase seed 1) acknowledged GUIDED at 3.18 s with a HEARTBEAT
+    # custom_mode 4 in the same loop, between its 1 Hz ones at 2.98 s and 3.98 s; its armed flag
+    # first came with the 3.98 s one, 0.7 s after the arming ACK.
+    gcs = ready_gcs()
+    regular = [t for t, m in gcs.log if m.get_type() == "HEARTBEAT"]
+    gcs.run((regular[-1] + 0.3 - gcs.sim.time_s) % 1.0)  # to 0.3 s after a regular heartbeat
+    t_cmd = gcs.sim.time_s
+    assert gcs.set_mode(4).result == mav.MAV_RESULT_ACCEPTED
+    gcs.run(0.05)
+    beats = [(t, m) for t, m in gcs.log if t >= t_cmd and m.get_type() == "HEARTBEAT"]
+    assert len(beats) == 1 and beats[0][1].custom_mode == 4
+    assert beats[0][0] - t_cmd <= 0.05  # not the next 1 Hz one, 0.7 s away
+    t_arm = gcs.sim.time_s
+    assert gcs.command_ack(mav.MAV_CMD_COMPONENT_ARM_DISARM, 1)[0].result == mav.MAV_RESULT_ACCEPTED
+    gcs.run(1.2)
+    after_arm = [t for t, m in gcs.log if t >= t_arm and m.get_type() == "HEARTBEAT"]
+    assert len(after_arm) == 1  # the regular one only
+    assert (after_arm[0] - regular[-1]) == pytest.approx(round(after_arm[0] - regular[-1]), abs=0.03)  # same phase
