@@ -269,6 +269,28 @@ def test_takeoff_waits_out_the_arming_delay_spools_up_then_ramps_the_throttle(ma
         assert first_up == pytest.approx(expected, abs=0.1)
 
 
+def test_the_position_controller_takes_over_the_takeoff_throttle_without_a_drop(make_ap, run_for):
+    # AC_PosControl::D_init_controller at lift-off: the acceleration target starts at the measured climb
+    # acceleration and the acceleration integrator holds the throttle the ramp had reached, so the
+    # thrust runs on from the ramp's last value; reset to zero instead, it fell to the hover thrust (half
+    # of the default airframe's maximum) on the first step and the climb started 0.25 s late
+    ap = make_ap()
+    run_for(ap, 4.0)
+    ap.request_mode(GUIDED)
+    ap.request_arm(True)
+    run_for(ap, 3.0)
+    assert ap.request_takeoff(20.0).accepted
+    steps = []  # (lifted off, thrust command, vertical speed)
+    run_for(ap, 4.0, each=lambda a: steps.append((a._mode.lifted_off, a.phys.thrust_cmd, a.truth.vel_enu[2])))
+    i = next(k for k, (lifted, _, _) in enumerate(steps) if lifted)
+    ramp_thrust = steps[i - 1][1]
+    assert ramp_thrust > 0.5 * ap.airframe.max_thrust_n  # lift-off needs more than hover thrust
+    after = [thrust for _, thrust, _ in steps[i + 1:i + 6]]  # the controller's first 0.1 s
+    assert min(after) > 0.97 * ramp_thrust
+    climb = [vz for _, _, vz in steps[i:i + 50]]
+    assert all(b >= a - 1e-6 for a, b in zip(climb, climb[1:]))  # accelerating up through lift-off
+
+
 LAND_PARAMS = {"LAND_SPEED": 50, "LAND_SPEED_HIGH": 0, "WPNAV_SPEED_DN": 150, "LAND_ALT_LOW": 1000, "WPNAV_ACCEL_Z": 100}
 
 
