@@ -13,7 +13,8 @@ Three fits:
 * :func:`fit_six_dof` -- orientation *and* position. The paper's attempt diverged (residuals over
   100 m). Here it converges because (1) it is initialised in closed form (Kabsch/Umeyama:
   ``Rotation.align_vectors`` on the centred point sets) from the track that agrees with most bins
-  of all the other tracks, so no compass guess is needed at all; (2) the unknowns are scaled: a
+  of all the other tracks (every track is tried: clutter and birds can make the longest tracks),
+  so no compass guess is needed at all; (2) the unknowns are scaled: a
   rotation vector about that initial orientation and an ENU offset in metres (not lat/lon degrees
   beside radians), with ``x_scale`` set so a unit step in each moves the residuals about as much;
   (3) it pools every track that agrees with the initial pose, which gives the geometric spread
@@ -26,6 +27,7 @@ axis, over the bins the fit used, as the paper reports them.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -166,25 +168,39 @@ def _inliers(pose: RadarPose, tracks: list[TrackBins], gate_m: float) -> list[Tr
 
 
 def fit_six_dof(tracks: list[TrackBins], *, min_bins: int = 10, gate_m: float = 8.0, robust_scale_m: float = 2.0,
-                seeds: int = 8) -> CalibrationResult:
-    """Orientation and position: closed-form initialisation, scaled parameters, pooled tracks, robust loss."""
+                max_residual_m: float = 25.0) -> CalibrationResult:
+    """Orientation and position: closed-form initialisation, scaled parameters, pooled tracks, robust loss.
+
+    Every usable track seeds a closed-form pose; the one the most bins of all tracks agree with
+    starts the fit. Seeding from every track, not only the longest, matters where clutter and birds
+    make long tracks and the drone's own is cut into short ones by drops and id swaps. A fit no track
+    agrees with (or whose residual exceeds ``max_residual_m``) is a :class:`CalibrationError`, not a pose.
+    """
     usable = [tb for tb in tracks if len(tb) >= min_bins]
     if not usable:
         raise CalibrationError(f"no track with {min_bins} or more bins")
-    # Initialise from the candidate track whose closed-form pose agrees with the most bins overall.
-    best_pose, best_support = None, -1
-    for tb in sorted(usable, key=lambda tb: -len(tb))[:seeds]:
-        pose = kabsch_pose(tb.radar_xyz, tb.gps_enu)
+    best_pose, best_support = None, 0
+    for tb in sorted(usable, key=lambda tb: (-len(tb), tb.track_id)):
+        with warnings.catch_warnings():  # a straight track's rotation is ill-defined; its support says so
+            warnings.filterwarnings("ignore", "Optimal rotation is not uniquely", UserWarning)
+            pose = kabsch_pose(tb.radar_xyz, tb.gps_enu)
         support = sum(len(x) for x in _inliers(pose, usable, gate_m))
         if support > best_support:
             best_pose, best_support = pose, support
-    assert best_pose is not None
+    if best_pose is None:
+        raise CalibrationError(f"no track's pose agrees with any track within {gate_m:g} m "
+                               f"({len(usable)} tracks of {min_bins} or more bins): not a flight past the radar")
     pose = best_pose
     for _ in range(3):  # refit on the agreeing tracks, re-select with the better pose
         chosen = _inliers(pose, usable, gate_m) or [max(usable, key=len)]
         pose = _refine(pose, chosen, robust_scale_m)
-    chosen = _inliers(pose, usable, gate_m) or [max(usable, key=len)]
-    return _result("six-dof", pose, chosen)
+    chosen = _inliers(pose, usable, gate_m)
+    if not chosen:
+        raise CalibrationError(f"the fitted pose agrees with no track within {gate_m:g} m")
+    result = _result("six-dof", pose, chosen)
+    if result.residual_rms_m > max_residual_m:
+        raise CalibrationError(f"residual {result.residual_rms_m:.1f} m rms exceeds {max_residual_m:g} m")
+    return result
 
 
 def _refine(init: RadarPose, tracks: list[TrackBins], robust_scale_m: float) -> RadarPose:

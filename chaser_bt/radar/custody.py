@@ -20,6 +20,18 @@ custody over one radar picture (pure: the custody holds all the state), by these
   target (a :class:`Sight`: its line of sight, fresh), a track must also lie on that line within
   ``sight_sigma`` of its own radar error: in a close crossing the gate holds both drones and the
   radar's new id may be either, but the camera has kept its eye on one;
+* after a release in a crowd (another object's track within ``crowd_m`` of the target's at its last
+  report: a close pass, where the radar cannot part the two; a duplicate of the target's own track,
+  beside it at its velocity, is not another object), a track takes the target over only if it fits
+  the target's prediction better, by ``crowd_margin`` in gate units, than the prediction of each
+  object that was beside it: a new id born in the pass may be either, so the chase waits for their
+  paths to part instead of guessing. The same test lets the other object's own id take the target
+  over within ``crowd_window_s`` (the radar swapped the two ids): it must fit the target better
+  than its own past;
+* a track where our own telemetry puts the chaser, moving as it moves, is the chaser (a duplicate,
+  or an id the correlator has not claimed yet), never the target: it neither takes the target
+  over nor confirms it (the camera's line of sight starts at the chaser, so the sight alone would
+  not refuse it);
 * after ``max_coast_s`` without a confirmation the target is *lost* and the mission searches; only a
   confident track that appeared after the loss, within ``max_gate_m`` of where the target was last,
   takes it back (or the operator designates again, :func:`designate`).
@@ -36,9 +48,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from chaser_bt.cue import TargetCue, TargetEstimate, sight_offset_sigma
-from chaser_bt.radar.feed import RadarPicture, RadarTrack
+from chaser_bt.radar.feed import OwnshipFix, RadarPicture, RadarTrack
 
-__all__ = ["CustodyParams", "CustodyEvent", "Custody", "Sight", "designate", "track_custody"]
+__all__ = ["CustodyParams", "CustodyEvent", "Custody", "Sight", "designate", "is_ownship", "track_custody"]
 
 
 @dataclass(frozen=True)
@@ -68,6 +80,15 @@ class CustodyParams:
         sight_floor_m: added to a report's error on every axis against the line of sight (the
             camera's mounting and timing, the target's size; m).
         sight_max_age_s: a sight older than this, against the report's time, is not used (s).
+        crowd_m: a track this close to the target's at its last report makes a release a crowded one (m).
+        crowd_window_s: how long after the last confirmation an id that was beside the target may
+            take it over, fitting it better than its own past (s).
+        crowd_margin: in a crowd, how much better (position miss over its gate plus velocity miss
+            over its gate) a track must fit the target than any object that was beside it.
+        self_sigma: a report within this many sigma of its error (plus ``self_floor_m``) of the
+            chaser's own telemetry position, and ``self_vel_mps`` of its velocity, is the chaser.
+        self_floor_m: added to a report's error on every axis against our own position (GPS, timing; m).
+        self_vel_mps: the velocity half of that test (m/s).
     """
 
     gate_sigma: float = 3.5
@@ -87,6 +108,12 @@ class CustodyParams:
     sight_sigma: float = 3.5
     sight_floor_m: float = 2.0
     sight_max_age_s: float = 0.5
+    crowd_m: float = 30.0
+    crowd_margin: float = 0.2
+    crowd_window_s: float = 3.0
+    self_sigma: float = 3.0
+    self_floor_m: float = 2.0
+    self_vel_mps: float = 3.0
 
     def __post_init__(self) -> None:
         for name in ("gate_sigma", "floor_m", "vel_gate_mps", "max_gate_m", "apart_m", "max_coast_s", "confidence_tau_s",
@@ -145,6 +172,8 @@ class Custody:
     misses: int = 0
     lost: bool = False
     near_ids: frozenset[int] = field(default=frozenset(), repr=False)  # within swap_m of it at the last report
+    beside: tuple[RadarTrack, ...] = field(default=(), repr=False)  # reports within crowd_m of it at the last one
+    noted_t: float = field(default=-math.inf, repr=False)  # the report of it the other tracks were last judged against
 
     def since_confirmed(self, t: float) -> float:
         return max(0.0, t - self.t_confirmed)
@@ -196,6 +225,20 @@ def designate(track: RadarTrack, t: float, by: str, previous: Custody | None = N
     kind = "designated" if previous is None else "switched"
     reason = by if previous is None else f"{by}, was target {previous.target_id}"
     return custody, CustodyEvent(t, kind, custody.target_id, track.track_id, reason)
+
+
+def is_ownship(report: RadarTrack, own: OwnshipFix | None, p: CustodyParams) -> bool:
+    """Whether ``report`` is where our own telemetry puts the chaser at the report's time, moving as it
+    moves (the velocity half is skipped when either velocity is unknown)."""
+    if own is None:
+        return False
+    d = report.position_enu - own.at(report.t)
+    cov = report.covariance_enu + p.self_floor_m**2 * np.eye(3)
+    if float(d @ np.linalg.solve(cov, d)) > p.self_sigma**2:
+        return False
+    if report.velocity_enu is None or own.velocity_enu is None:
+        return True
+    return float(np.linalg.norm(report.velocity_enu - own.velocity_enu)) <= p.self_vel_mps
 
 
 def _manoeuvre_m(c: Custody, dt: float, p: CustodyParams) -> float:
@@ -266,25 +309,29 @@ def track_custody(c: Custody, picture: RadarPicture, params: CustodyParams | Non
     p = params or CustodyParams()
     t = picture.t
     events: list[CustodyEvent] = []
-    candidates = {tr.track_id: tr for tr in picture.intruders}
+    candidates = {tr.track_id: tr for tr in picture.intruders if not is_ownship(tr, picture.ownship, p)}
     if c.lost:
         return _reacquire(c, candidates, p, events), events
     carrier = candidates.get(c.track_id) if c.track_id is not None else None
+    if carrier is None and c.track_id is not None and c.track_id in picture.tracks and c.track_id not in picture.ownship_ids:
+        carrier = picture.tracks[c.track_id]  # on the chaser itself now: a miss, as a report outside the gate
     if carrier is not None and carrier.t > c.t_confirmed:
         fit = _fit(c, carrier, p, carrier=True)
-        if fit.inside:
+        on_self = carrier.track_id not in candidates
+        if fit.inside and not on_self:
             c = _confirm(c, carrier)
         elif c.misses + 1 >= p.misses_to_release:
+            where = "on the chaser's own position" if on_self else "outside the target's gate"
             events.append(CustodyEvent(t, "released", c.target_id, c.track_id,
-                                       f"{c.misses + 1} reports outside the target's gate (id swap or wrong track; "
-                                       f"last {fit})"))
+                                       f"{c.misses + 1} reports {where} (id swap or wrong track; last {fit})"))
             c = replace(c, track_id=None, misses=0, apart_ids=c.apart_ids | {carrier.track_id})
             carrier = None
         else:
             c = replace(c, misses=c.misses + 1)
     elif c.track_id is not None and carrier is None:
         why = "track ended" if c.track_id not in picture.tracks else "track taken for the ownship"
-        events.append(CustodyEvent(t, "released", c.target_id, c.track_id, f"{why}; coasting"))
+        crowd = f", {len(c.beside)} track(s) within {p.crowd_m:g} m" if c.beside else ""
+        events.append(CustodyEvent(t, "released", c.target_id, c.track_id, f"{why}; coasting{crowd}"))
         c = replace(c, track_id=None, misses=0)
     if c.track_id is None:
         c = _hand_over(c, candidates, p, events, sight)
@@ -302,16 +349,20 @@ def _hand_over(c: Custody, candidates: dict[int, RadarTrack], p: CustodyParams,
     camera may be the one that is wrong, so it is not refused for good)."""
     best: tuple[_Fit, RadarTrack, str] | None = None
     refused = set(c.refused_ids)
-    swap_window = c.since_confirmed(max((tr.t for tr in candidates.values()), default=c.t_confirmed)) <= 1.0
+    since = c.since_confirmed(max((tr.t for tr in candidates.values()), default=c.t_confirmed))
+    beside_ids = {o.track_id for o in c.beside}
     for tr in candidates.values():
         if tr.t <= c.t_confirmed:
             continue
-        if tr.track_id in refused or (tr.track_id in c.apart_ids and not (swap_window and tr.track_id in c.near_ids)):
+        swap = (since <= 1.0 and tr.track_id in c.near_ids) or (since <= p.crowd_window_s and tr.track_id in beside_ids)
+        if tr.track_id in refused or (tr.track_id in c.apart_ids and not swap):
             continue  # another object seen beside the target, or one that appeared away from it
         fit = _fit(c, tr, p)
         if not fit.inside:
             refused.add(tr.track_id)
             continue
+        if c.beside and not _fits_target_better(c, tr, fit, p):
+            continue  # in a close pass it may be the object beside the target: wait for their paths to part
         seen = sight is not None and abs(tr.t - sight.t) <= p.sight_max_age_s
         if seen and sight.offset_sigma(tr, p.sight_floor_m) > p.sight_sigma:
             continue  # in the gate, but not where the camera sees the target
@@ -325,6 +376,18 @@ def _hand_over(c: Custody, candidates: dict[int, RadarTrack], p: CustodyParams,
     events.append(CustodyEvent(tr.t, "handover", c.target_id, tr.track_id,
                                f"{why} after {tr.t - c.t_confirmed:.1f} s ({fit})"))
     return _confirm(replace(c, apart_ids=c.apart_ids - {tr.track_id}, refused_ids=frozenset()), tr)
+
+
+def _fits_target_better(c: Custody, tr: RadarTrack, fit: _Fit, p: CustodyParams) -> bool:
+    """Whether ``tr`` (whose fit to the target is ``fit``) fits the target better by ``crowd_margin``
+    than it fits each object that was beside the target at its last report, carried on its own velocity."""
+    for o in c.beside:
+        other = Custody(o.track_id, o.track_id, o.t, o.position_enu,
+                        np.zeros(3) if o.velocity_enu is None else np.asarray(o.velocity_enu, float),
+                        o.covariance_enu, "", o.t)
+        if _fit(other, tr, p).cost - fit.cost < p.crowd_margin:
+            return False
+    return True
 
 
 def _reacquire(c: Custody, candidates: dict[int, RadarTrack], p: CustodyParams,
@@ -342,18 +405,31 @@ def _reacquire(c: Custody, candidates: dict[int, RadarTrack], p: CustodyParams,
     return _confirm(replace(c, velocity_enu=np.zeros(3), refused_ids=frozenset()), tr)
 
 
+def _duplicate(tr: RadarTrack, carrier: RadarTrack, p: CustodyParams) -> bool:
+    """Whether ``tr`` is a second track of the carrier's object (the radar duplicates a track now and
+    then): within ``swap_m`` of it and at its velocity (``carrier_vel_gate_mps``). Such a track is
+    neither another object nor a crowd; it may carry the target when the carrier drops."""
+    if tr.velocity_enu is None or carrier.velocity_enu is None:
+        return False
+    return (float(np.linalg.norm(tr.position_enu - carrier.position_enu)) <= p.swap_m
+            and float(np.linalg.norm(tr.velocity_enu - carrier.velocity_enu)) <= p.carrier_vel_gate_mps)
+
+
 def _note_others(c: Custody, candidates: dict[int, RadarTrack], p: CustodyParams) -> Custody:
-    """Remember the tracks seen apart from the carrying one (other objects) and those close to it."""
+    """Remember the tracks seen apart from the carrying one (other objects) and those close to it, as of
+    the carrying track's confirmation of the target in this picture."""
     carrier = candidates.get(c.track_id) if c.track_id is not None else None
-    if carrier is None:
-        return c
-    apart, near = set(c.apart_ids), set()
+    if carrier is None or carrier.t != c.t_confirmed or carrier.t <= c.noted_t:
+        return c  # judged against each report of the target once, never against a stale one
+    apart, near, beside = set(c.apart_ids), set(), []
     for tr in candidates.values():
-        if tr.track_id == carrier.track_id or abs(tr.t - carrier.t) > 0.5:
+        if tr.track_id == carrier.track_id or abs(tr.t - carrier.t) > 0.5 or _duplicate(tr, carrier, p):
             continue
         d = float(np.linalg.norm(tr.position_enu - carrier.position_enu))
         if d >= p.apart_m:
             apart.add(tr.track_id)
         if d <= p.swap_m:
             near.add(tr.track_id)
-    return replace(c, apart_ids=frozenset(apart), near_ids=frozenset(near))
+        if d <= p.crowd_m:
+            beside.append(tr)
+    return replace(c, apart_ids=frozenset(apart), near_ids=frozenset(near), beside=tuple(beside), noted_t=carrier.t)

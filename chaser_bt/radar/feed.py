@@ -71,6 +71,21 @@ class RadarTrack:
 
 
 @dataclass(frozen=True)
+class OwnshipFix:
+    """The ownship's own telemetry: ENU position and velocity at mission time ``t``."""
+
+    t: float
+    position_enu: np.ndarray
+    velocity_enu: np.ndarray | None = None
+
+    def at(self, t: float) -> np.ndarray:
+        """Where it is at ``t``, on its velocity (the fix and a radar report are a scan apart)."""
+        if self.velocity_enu is None or not np.all(np.isfinite(self.velocity_enu)):
+            return self.position_enu
+        return self.position_enu + self.velocity_enu * (t - self.t)
+
+
+@dataclass(frozen=True)
 class RadarPicture:
     """Active tracks at mission time ``t`` and what the correlator made of them."""
 
@@ -79,6 +94,7 @@ class RadarPicture:
     association: Association | None
     last_scan_t: float | None
     counts: DropCounts = field(default_factory=DropCounts)
+    ownship: OwnshipFix | None = None  # our own telemetry at the picture's update
 
     @property
     def ownship_ids(self) -> frozenset[int]:
@@ -127,13 +143,16 @@ class RadarFeed:
         """
         if self._picture is not None and self._picture.t == t:
             return self._picture
+        fix = None
         if ownship_position_enu is not None:
-            self.correlator.add_ownship(t if ownship_t is None else ownship_t, ownship_position_enu, ownship_velocity_enu)
+            fix = OwnshipFix(t if ownship_t is None else ownship_t, np.asarray(ownship_position_enu, float),
+                             None if ownship_velocity_enu is None else np.asarray(ownship_velocity_enu, float))
+            self.correlator.add_ownship(fix.t, ownship_position_enu, ownship_velocity_enu)
         for scan in self.reader.accept_all(self.source.receive()):
             self._take(scan)
         self._tracks = {i: tr for i, tr in self._tracks.items() if t - tr.t <= self.track_timeout_s}
         assoc = self.correlator.associate(t) if self._last_scan_t is not None else None
-        self._picture = RadarPicture(t, dict(self._tracks), assoc, self._last_scan_t, self.reader.counts)
+        self._picture = RadarPicture(t, dict(self._tracks), assoc, self._last_scan_t, self.reader.counts, fix)
         return self._picture
 
     def _take(self, scan: RadarScan) -> None:

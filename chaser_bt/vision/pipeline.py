@@ -133,12 +133,15 @@ class PipelineConfig:
 @dataclass(frozen=True)
 class FramePlan:
     """What the pipeline does with the next frame, decided before the frame is read: the smoothed
-    attitude and camera position, the cue's position, whether the detector runs and where it looks
-    (``window``; None: the whole frame), whether a track the detector did not see there counts against
-    it (``judge``), and ``regions``, the only parts of the frame the pipeline will read (the focus
-    window, the trackers' neighbourhoods; None: all of it), for a camera that reads out regions."""
+    attitude and camera position, the attitude as ``measured`` (the camera's turn between frames is
+    reckoned from it: the smoothing lags a gust's swing), the cue's position, whether the detector
+    runs and where it looks (``window``; None: the whole frame), whether a track the detector did not
+    see there counts against it (``judge``), and ``regions``, the only parts of the frame the pipeline
+    will read (the focus window, the trackers' neighbourhoods; None: all of it), for a camera that
+    reads out regions."""
 
     attitude: Rotation
+    measured: Rotation
     camera_enu: np.ndarray
     cue_enu: np.ndarray | None
     detect: bool
@@ -171,7 +174,7 @@ class VisionPipeline:
         self.last_estimate: TargetEstimate | None = None
         self.focused_frames = 0
         self.cue_fit = CueFit(self.config.cue_fit_tau_s, self.config.cue_switch_sigma)
-        self._seen_attitude: Rotation | None = None  # the camera's attitude at the last frame processed
+        self._seen_attitude: Rotation | None = None  # the measured attitude at the last frame processed
         # (time, where the detector looks; None: the whole frame) of detector frames planned, not processed yet.
         self._unseen_detections: list[tuple[float, Region | None]] = []
 
@@ -222,7 +225,7 @@ class VisionPipeline:
         window, judge = self._focus(ownship, att, cam, cue_enu) if detect else (None, True)
         regions: tuple[Region, ...] | None = None
         if not detect or window is not None:
-            regions = tuple(self._track_regions(att)) + (() if window is None else (window.region,))
+            regions = tuple(self._track_regions(ownship.attitude)) + (() if window is None else (window.region,))
         if regions is not None and self._unseen_detections:
             # A frame planned before an earlier detector frame is processed (a camera behind the tick)
             # reads where that detector looked too: a track it starts will be looked for here.
@@ -230,7 +233,7 @@ class VisionPipeline:
             regions = None if None in unseen else regions + tuple(r for r in unseen if r is not None)
         if detect:
             self._unseen_detections.append((t, None if window is None else window.region))
-        return FramePlan(att, cam, cue_enu, detect, window, judge, regions)
+        return FramePlan(att, ownship.attitude, cam, cue_enu, detect, window, judge, regions)
 
     def process(self, frame: Frame, ownship: OwnshipPose, target_range_m: float | None = None,
                 cue: TargetCue | None = None, plan: FramePlan | None = None) -> TargetEstimate | None:
@@ -244,6 +247,7 @@ class VisionPipeline:
         # This frame, and any planned before it that never came, are no longer ahead.
         self._unseen_detections = [u for u in self._unseen_detections if u[0] > frame.t]
         region = None
+        self._follow_the_turn(plan.measured)
         if plan.detect:
             if plan.window is None:
                 dets = list(self.detector(image))
@@ -260,7 +264,7 @@ class VisionPipeline:
         else:
             tracks = self.trackers.advance(image, frame.t)
         self.frames += 1
-        self._seen_attitude = att
+        self._seen_attitude = plan.measured
         # A track the cue agrees with needs no second hit: the cue is the independent confirmation.
         need = 1 if cue_enu is not None else self.config.confirm_hits
         tracks = [tr for tr in tracks if frame.t - tr.t_detected <= self.config.max_track_age_s and tr.hits >= need]
@@ -318,7 +322,7 @@ class VisionPipeline:
         centre = expected = None
         track = self._followed()
         if track is not None:
-            x0, y0, x1, y1 = self._turned(np.array([track.box], float), attitude)[0]
+            x0, y0, x1, y1 = self._turned(np.array([track.box], float), ownship.attitude)[0]
             centre, expected = ((x0 + x1) / 2, (y0 + y1) / 2), max(track.size)
         elif cue_enu is not None:
             px, front = self.projector.pixel_of(cue_enu[None], ownship.position_enu, attitude)
@@ -375,6 +379,17 @@ class VisionPipeline:
         px, front = self.projector.pixel_of(1e4 * bearings, np.zeros(3), attitude)  # 10 km out: rotation only
         shift = np.where(front[:, None] & np.isfinite(px), px - centres, 0.0)
         return boxes + np.hstack([shift, shift])
+
+    def _follow_the_turn(self, attitude: Rotation) -> None:
+        """Move every track's box to where the camera's turn since the last frame puts it
+        (:meth:`_turned`), before detections are matched to the boxes: in gusts the image swings by
+        more than a small target's size from one frame to the next, and an unmoved box would miss its
+        own target's detection (the track is pruned, a new one starts and the range restarts)."""
+        tracks = self.trackers.tracks
+        if not tracks:
+            return
+        for track, box in zip(tracks, self._turned(np.array([tr.box for tr in tracks], float), attitude)):
+            track.box = tuple(float(v) for v in box)
 
     def _span_m(self) -> float:
         """The width expected of the target: the largest known width of the accepted classes (1 m if none is known)."""

@@ -19,7 +19,8 @@ Only this module (and the rehearsal that calls it) reads the simulator's truth. 
 - custody (the chase keeps the target it designated): the *designated* object is the one the radar
   track named in ``/target/custody`` was of when it was designated (the radar model's truth), else
   the first intruder; every figure above is scored on it. A tick *follows* an object when the
-  camera's latest estimate (no older than 2 s) matches it. Over the follow phase after acquisition:
+  camera's latest estimate (no older than 2 s) matches it (of two it matches, the one nearest its
+  bearing: the box's range cannot part two drones close together). Over the follow phase after acquisition:
   ``custody_frac``, the share of ticks following something in which it is the designated object;
   ``target_switches``, how often the object followed changed; ``losses`` and ``reacquire_s_max``,
   the times the designated object went unmatched for over 2 s and the longest such gap that ended;
@@ -466,14 +467,22 @@ class RehearsalObserver:
             self.events.append(TraceEvent(t, "custody", "lost" if custody.lost else state))
 
     def _followed(self, est: Any, cam_pos: np.ndarray, t: float) -> int | None:
-        """The object a fresh estimate is of: the nearest in bearing among those it matches."""
+        """The object a fresh estimate is of: the nearest in bearing among those it matches (the
+        camera measures the bearing well and the range from a box badly, so two drones close
+        together are told apart by the bearing; an estimate without one, by position over range)."""
         best: tuple[float, int] | None = None
+        bearing = getattr(est, "bearing_enu", None)
+        bearing = bearing if bearing is not None and np.all(np.isfinite(bearing)) else None
         for k, (_, where) in enumerate(self._objects):
             pos = where(t)
-            if pos is None or not estimate_matches(est.position_enu, getattr(est, "bearing_enu", None), cam_pos, pos):
+            if pos is None or not estimate_matches(est.position_enu, bearing, cam_pos, pos):
                 continue
             to = pos - cam_pos
-            d = float(np.linalg.norm(est.position_enu - pos)) / max(float(np.linalg.norm(to)), 1e-6)
+            dist = max(float(np.linalg.norm(to)), 1e-6)
+            if bearing is not None:
+                d = math.acos(min(1.0, max(-1.0, float(bearing @ to) / dist)))
+            else:
+                d = float(np.linalg.norm(est.position_enu - pos)) / dist
             if best is None or d < best[0]:
                 best = (d, k)
         return None if best is None else best[1]

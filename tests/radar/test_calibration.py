@@ -98,3 +98,34 @@ def test_recording_round_trip_and_calibration_from_file(tmp_path):
     assert np.degrees((res.pose.rotation.inv() * TRUE.rotation).magnitude()) < 1e-4
     truth = frame.to_geodetic(TRUE.position_enu)
     assert abs(where.lat_deg - truth.lat_deg) < 1e-8 and abs(where.alt_m - truth.alt_m) < 1e-3
+
+
+def _clutter(t: np.ndarray, n: int, first_id: int, rng: np.random.Generator):
+    """``n`` tracks of straight-line clutter over the whole flight, unrelated to the drone."""
+    ts, ids, xyz = [], [], []
+    for k in range(n):
+        start, vel = rng.uniform([40, -60, 5], [200, 60, 60]), rng.uniform(-3, 3, 3)
+        ts.append(t)
+        ids.append(np.full(t.size, first_id + k))
+        xyz.append(start + vel * t[:, None])
+    return np.concatenate(ts), np.concatenate(ids), np.concatenate(xyz)
+
+
+def test_six_dof_finds_the_drone_when_its_track_is_cut_short_and_clutter_tracks_are_longer():
+    # The drone's flight is cut into 12 tracks of 12-13 bins (drops, id swaps); ten clutter tracks
+    # last the whole minute, so every one of the ten longest tracks is clutter.
+    t, ids, xyz, enu = flight(n_tracks=12)
+    ct, cid, cxyz = _clutter(t, 10, 100, np.random.default_rng(3))
+    tracks = bin_tracks(np.r_[t, ct], np.r_[ids, cid], np.r_[xyz, cxyz], t, enu)
+    assert all(tb.track_id >= 100 for tb in tracks[:10])
+    res = fit_six_dof(tracks)
+    assert sorted(res.track_ids) == list(range(1, 13))
+    assert np.allclose(res.pose.position_enu, TRUE.position_enu, atol=1e-4)
+    assert res.residual_rms_m < 1e-4
+
+
+def test_six_dof_refuses_a_recording_of_clutter_alone():
+    t, _, _, enu = flight()
+    ct, cid, cxyz = _clutter(t, 6, 100, np.random.default_rng(4))
+    with pytest.raises(CalibrationError):
+        fit_six_dof(bin_tracks(ct, cid, cxyz, t, enu))

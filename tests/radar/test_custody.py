@@ -236,3 +236,72 @@ def test_a_stale_sight_is_not_used():
     stale = _looking_at((5.0, 112.0, 30.0))
     c, _ = _crossing(Sight(0.4, stale.camera_enu, stale.bearing_enu))  # 0.6 s before the reports
     assert c.track_id == 8
+
+
+def test_a_track_on_the_chasers_own_position_never_takes_the_target_over_nor_confirms_it():
+    from chaser_bt.radar.feed import OwnshipFix
+
+    # The target (track 1) flies east at 5 m/s; the chaser 25 m south of it at the same velocity.
+    c = start()
+    own = lambda t: OwnshipFix(t, np.array([5.0 * t, 75.0, 30.0]), np.array([5.0, 0.0, 0.0]))
+    seen = lambda t, *trs: RadarPicture(t, {tr.track_id: tr for tr in trs}, None, t, ownship=own(t))
+    # The target's track drops; 2 s later a new, uncorrelated track appears on the chaser (a duplicate
+    # of its own): inside the target's grown gate (25 m off the prediction) but where our telemetry is.
+    c, ev = fly(c, [seen(1.0, track(1, 1.0, (5, 100, 30), (5, 0, 0))), seen(1.2),
+                    seen(3.0, track(5, 3.0, (15.5, 75.5, 30), (5, 0, 0), first=2.9))])
+    assert [e.kind for e in ev] == ["released"] and c.track_id is None
+    # Without our telemetry the same track would have been taken (the rule is what refuses it).
+    c2, ev2 = fly(start(), [picture(1.0, track(1, 1.0, (5, 100, 30), (5, 0, 0))), picture(1.2),
+                            picture(3.0, track(5, 3.0, (15.5, 75.5, 30), (5, 0, 0), first=2.9))])
+    assert c2.track_id == 5 and ev2[-1].kind == "handover"
+    # The carrying id swapped onto the chaser: two reports there release it, none confirms it.
+    c3, ev3 = fly(start(), [seen(0.2, track(1, 0.2, (1, 100, 30), (5, 0, 0))), seen(0.4, track(1, 0.4, (2, 75, 30), (5, 0, 0))),
+                            seen(0.6, track(1, 0.6, (3, 75, 30), (5, 0, 0)))])
+    assert c3.t_confirmed == pytest.approx(0.2) and [e.kind for e in ev3] == ["released"]
+    assert "own position" in ev3[0].reason and 1 in c3.apart_ids
+
+
+def test_the_ownship_test_needs_both_position_and_velocity():
+    from chaser_bt.radar.custody import is_ownship
+    from chaser_bt.radar.feed import OwnshipFix
+
+    p = CustodyParams()  # 3 sigma of a 2 m report error plus a 2 m floor: 8.5 m; 3 m/s
+    own = OwnshipFix(0.0, np.zeros(3), np.array([4.0, 0.0, 0.0]))
+    assert is_ownship(track(1, 0.5, (2.0 + 8.0, 0, 0), (4, 0, 0)), own, p)  # 8 m off where it is at 0.5 s
+    assert not is_ownship(track(1, 0.5, (2.0 + 9.0, 0, 0), (4, 0, 0)), own, p)
+    assert not is_ownship(track(1, 0.5, (2.0, 0, 0), (0, 0, 0)), own, p)  # same place, hovering: not us
+    assert is_ownship(track(1, 0.5, (2.0, 0, 0), None), own, p)
+    assert not is_ownship(track(1, 0.5, (2.0, 0, 0), (4, 0, 0)), None, p)
+
+
+def test_a_new_id_born_in_a_close_pass_waits_until_it_fits_the_target_better_than_the_other_drone():
+    # The target flies east at 2 m/s along y = 100; another drone crosses it southwards at 6 m/s, 5 m
+    # away at t = 1. The target's track drops in the pass; at 1.4 s a new id (9) appears on the other
+    # drone: inside the target's gate (a few metres off, 6.3 m/s off a gate of 17), but it fits the
+    # drone beside it exactly, so it waits. At 1.6 s the target's own new id (10) fits the target.
+    target = lambda t: (2.0 * t, 100.0, 30.0)
+    other = lambda t: (2.0, 111.0 - 6.0 * t, 30.0)
+    pics = [picture(0.2 * k, track(1, 0.2 * k, target(0.2 * k), (2, 0, 0)), track(2, 0.2 * k, other(0.2 * k), (0, -6, 0)))
+            for k in range(0, 6)]
+    pics += [picture(1.2), picture(1.4, track(9, 1.4, other(1.4), (0, -6, 0), first=1.4)),
+             picture(1.6, track(9, 1.6, other(1.6), (0, -6, 0), first=1.4), track(10, 1.6, target(1.6), (2, 0, 0), first=1.6))]
+    c, ev = fly(start(0.0, target(0.0), (2, 0, 0)), pics)
+    assert c.track_ids == (1, 10) and [e.kind for e in ev] == ["released", "handover"]
+    assert "within 30 m" in ev[0].reason
+    # Without the drone beside it (nothing near the target when it dropped), id 9 would have been taken.
+    alone = [picture(0.2 * k, track(1, 0.2 * k, target(0.2 * k), (2, 0, 0))) for k in range(0, 6)]
+    c2, _ = fly(start(0.0, target(0.0), (2, 0, 0)), alone + pics[6:8])
+    assert c2.track_id == 9
+
+
+def test_a_duplicate_of_the_targets_own_track_takes_it_over_when_the_carrier_drops():
+    # The radar reports the target twice (id 1 and a duplicate, id 3, 4 m off at its velocity); id 1
+    # ends. The duplicate is not another object beside the target, so nothing waits: it carries on.
+    target = lambda t: (5.0 * t, 100.0, 30.0)
+    dup = lambda t: (5.0 * t + 4.0, 100.0, 30.0)
+    pics = [picture(0.2 * k, track(1, 0.2 * k, target(0.2 * k), (5, 0, 0)), track(3, 0.2 * k, dup(0.2 * k), (5, 0, 0)))
+            for k in range(0, 6)]
+    pics += [picture(1.2, track(3, 1.2, dup(1.2), (5, 0, 0)))]
+    c, ev = fly(start(0.0, target(0.0), (5, 0, 0)), pics)
+    assert [e.kind for e in ev] == ["released", "handover"] and c.track_ids == (1, 3)
+    assert "within" not in ev[0].reason  # not a crowd

@@ -327,3 +327,29 @@ def test_a_source_that_cannot_read_regions_is_asked_for_whole_frames():
     src = Plain()
     CameraSensor(src, VisionPipeline(CAM, _Fixed(None))).step(0.0, OwnshipPose(0.0, np.zeros(3), np.zeros(3), Rotation.identity()))
     assert src.calls == 1
+
+
+def test_a_gust_that_swings_the_image_by_more_than_the_box_keeps_the_track():
+    from scipy.spatial.transform import Rotation
+
+    cam = CameraModel(width_px=640, height_px=480, tilt_rad=0.0)
+    fx = cam.focal_px[0]
+    # A target 8 px wide, 40 px right of the centre, still; the aircraft yaws 5 deg right between two
+    # frames (a gust), so the target slides left by fx * (tan(atan(40 / fx) + 5 deg) - 40 / fx), ~27 px:
+    # three box widths.
+    x = 320.0 + 40.0
+    shift = fx * (math.tan(math.atan(40.0 / fx) + math.radians(5.0)) - 40.0 / fx)
+    assert shift > 3 * 8.0
+    script = _Script([[((x - 4, 236.0, x + 4, 244.0), 0.9)], [((x - shift - 4, 236.0, x - shift + 4, 244.0), 0.9)]])
+    # The default attitude smoothing: a lagging attitude would move the box only part of the way.
+    pipe = VisionPipeline(cam, script, PipelineConfig(detect_every=1, tracker_kinds=(), focus=False))
+    level = OwnshipPose(0.0, np.array([0.0, 0.0, 10.0]), np.zeros(3), Rotation.identity())
+    swung = OwnshipPose(0.1, np.array([0.0, 0.0, 10.0]), np.zeros(3), Rotation.from_euler("z", math.radians(-5.0)))
+    # No cue: a track is reported from its second hit, so only the same track carried across the swing
+    # gives an estimate at the second frame.
+    assert pipe.process(Frame(0.0, np.zeros((480, 640, 3), np.uint8), 0), level) is None
+    second = pipe.process(Frame(0.1, np.zeros((480, 640, 3), np.uint8), 1), swung)
+    assert second is not None and pipe.track.hits == 2 and second.track_id == 1
+    # The estimate's bearing is the still target's, whatever the image did (within the smoothing's lag).
+    first_bearing = Projector(cam).bearing_enu(np.array([[x, 240.0]]), Rotation.identity())[0]
+    assert math.degrees(math.acos(min(1.0, float(first_bearing @ second.bearing_enu)))) < 3.0

@@ -228,3 +228,22 @@ def test_a_trace_cut_in_the_middle_of_a_row_keeps_whole_rows_only():
     tr = obs.trace({})
     assert len(tr) == 2 and tr.ownship_enu.shape == (2, 3) and len(tr.phase) == 2
     assert tr.slant_range_m.shape == (2,)
+
+
+def test_two_drones_close_together_are_told_apart_by_the_bearing_not_the_boxs_range():
+    from types import SimpleNamespace
+
+    from chaser_bt.cue import TargetCue, TargetEstimate
+    from sitl.bench.scoring import RehearsalObserver
+
+    # From the camera at the origin: drone A 40 m north, drone B 4 m east of it and 8 m further
+    # (5.7 deg apart). The camera looks straight at A (bearing exact) but its box-size range reads
+    # 48 m, which puts the estimate's position 2.4 m from B's and 8 m from A's. A is followed.
+    a, b = np.array([0.0, 40.0, 0.0]), np.array([4.0, 48.0, 0.0])
+    bearing = np.array([0.0, 1.0, 0.0])
+    est = TargetEstimate(t=1.0, position_enu=48.0 * bearing, covariance_enu=np.eye(3), bearing_enu=bearing, range_m=48.0)
+    observer = SimpleNamespace(_objects=[("A", lambda t: a), ("B", lambda t: b)])
+    assert RehearsalObserver._followed(observer, est, np.zeros(3), 1.0) == 0
+    # A cue without a bearing (not the camera's) can only be judged by its position: B.
+    est_no_bearing = TargetCue(t=1.0, position_enu=48.0 * bearing, covariance_enu=np.eye(3))
+    assert RehearsalObserver._followed(observer, est_no_bearing, np.zeros(3), 1.0) == 1
