@@ -14,9 +14,8 @@ custody over one radar picture (pure: the custody holds all the state), by these
 * when no track carries the target it *coasts* on its last velocity; a track takes it over only
   if its report falls inside the gate on position **and** velocity (not on confidence) and it is
   not an object seen apart from the target while the target was tracked: another drone, a bird or
-  clutter seen beside the target is never the target, so a drop-out never hands custody to it. The
-  one exception is an id swap, the radar's own failure: a track that was within ``swap_m`` of the
-  target's and now fits the gate where the target's old id does not. While the camera follows the
+  clutter seen beside the target is never the target, so a drop-out never hands custody to it
+  (the one exception, an id swap in a close pass, is the next rule's). While the camera follows the
   target (a :class:`Sight`: its line of sight, fresh), a track must also lie on that line within
   ``sight_sigma`` of its own radar error: in a close crossing the gate holds both drones and the
   radar's new id may be either, but the camera has kept its eye on one;
@@ -70,7 +69,8 @@ class CustodyParams:
             gate allows ``accel_mps2`` over it too.
         max_gate_m: the position gate never grows past this (m).
         apart_m: a track seen this far from the target's, while both were reported, is another object.
-        swap_m: a track within this distance of the target's may be its id swap partner.
+        duplicate_m: a track this close to the target's, at its velocity (``carrier_vel_gate_mps``), is a
+            duplicate of it, not another object (m).
         misses_to_release: reports in a row outside the gate that release the carrying id.
         max_coast_s: unconfirmed this long, the target is lost (s).
         reacquire_confidence: a lost target is taken back only by a new track at least this confident.
@@ -100,7 +100,7 @@ class CustodyParams:
     vel_lag_s: float = 1.0
     max_gate_m: float = 200.0
     apart_m: float = 20.0
-    swap_m: float = 15.0
+    duplicate_m: float = 15.0
     misses_to_release: int = 2
     max_coast_s: float = 15.0
     reacquire_confidence: float = 0.8
@@ -171,7 +171,6 @@ class Custody:
     refused_ids: frozenset[int] = frozenset()
     misses: int = 0
     lost: bool = False
-    near_ids: frozenset[int] = field(default=frozenset(), repr=False)  # within swap_m of it at the last report
     beside: tuple[RadarTrack, ...] = field(default=(), repr=False)  # reports within crowd_m of it at the last one
     noted_t: float = field(default=-math.inf, repr=False)  # the report of it the other tracks were last judged against
 
@@ -354,7 +353,7 @@ def _hand_over(c: Custody, candidates: dict[int, RadarTrack], p: CustodyParams,
     for tr in candidates.values():
         if tr.t <= c.t_confirmed:
             continue
-        swap = (since <= 1.0 and tr.track_id in c.near_ids) or (since <= p.crowd_window_s and tr.track_id in beside_ids)
+        swap = since <= p.crowd_window_s and tr.track_id in beside_ids  # its own past is weighed below
         if tr.track_id in refused or (tr.track_id in c.apart_ids and not swap):
             continue  # another object seen beside the target, or one that appeared away from it
         fit = _fit(c, tr, p)
@@ -407,11 +406,11 @@ def _reacquire(c: Custody, candidates: dict[int, RadarTrack], p: CustodyParams,
 
 def _duplicate(tr: RadarTrack, carrier: RadarTrack, p: CustodyParams) -> bool:
     """Whether ``tr`` is a second track of the carrier's object (the radar duplicates a track now and
-    then): within ``swap_m`` of it and at its velocity (``carrier_vel_gate_mps``). Such a track is
+    then): within ``duplicate_m`` of it and at its velocity (``carrier_vel_gate_mps``). Such a track is
     neither another object nor a crowd; it may carry the target when the carrier drops."""
     if tr.velocity_enu is None or carrier.velocity_enu is None:
         return False
-    return (float(np.linalg.norm(tr.position_enu - carrier.position_enu)) <= p.swap_m
+    return (float(np.linalg.norm(tr.position_enu - carrier.position_enu)) <= p.duplicate_m
             and float(np.linalg.norm(tr.velocity_enu - carrier.velocity_enu)) <= p.carrier_vel_gate_mps)
 
 
@@ -421,15 +420,13 @@ def _note_others(c: Custody, candidates: dict[int, RadarTrack], p: CustodyParams
     carrier = candidates.get(c.track_id) if c.track_id is not None else None
     if carrier is None or carrier.t != c.t_confirmed or carrier.t <= c.noted_t:
         return c  # judged against each report of the target once, never against a stale one
-    apart, near, beside = set(c.apart_ids), set(), []
+    apart, beside = set(c.apart_ids), []
     for tr in candidates.values():
         if tr.track_id == carrier.track_id or abs(tr.t - carrier.t) > 0.5 or _duplicate(tr, carrier, p):
             continue
         d = float(np.linalg.norm(tr.position_enu - carrier.position_enu))
         if d >= p.apart_m:
             apart.add(tr.track_id)
-        if d <= p.swap_m:
-            near.add(tr.track_id)
         if d <= p.crowd_m:
             beside.append(tr)
-    return replace(c, apart_ids=frozenset(apart), near_ids=frozenset(near), beside=tuple(beside), noted_t=carrier.t)
+    return replace(c, apart_ids=frozenset(apart), beside=tuple(beside), noted_t=carrier.t)
