@@ -240,13 +240,19 @@ class HoverOnStale(py_trees.ports.PortsMixin, py_trees.decorators.Decorator):
     """Tick the child while target data is fresh; when older than ``max_age_s``, halt it and hover.
 
     RUNNING while hovering; FAILURE once stale for ``give_up_after_s`` (0 = never), so a fallback
-    can take over (paper section 2.2.1: from follow back to fly-to-cue or search).
+    can take over (paper section 2.2.1: from follow back to fly-to-cue or search). With ``face`` set
+    to another sensor's cue (the radar's) and that cue fresh, the hover turns the nose, and a fixed
+    camera, towards it: a target that passed under or beside the chaser is behind it, where the
+    camera cannot find it again while the heading is held.
     """
 
     INPUT_PORTS = {
         "target": input_port(TargetCue, "The data whose age is watched", required=False, default_key=ESTIMATE_KEY),
         "max_age_s": input_port(float, "Stale after this long without new data (s)", default=2.0, minimum=0),
         "give_up_after_s": input_port(float, "FAILURE after this long stale (s); 0 = never", default=0.0, minimum=0),
+        "face": input_port(TargetCue, "Optional cue the hover turns towards while fresh (remap it to the radar cue, "
+                           "{@target/cue}); unset: the heading is held", required=False),
+        "face_max_age_s": input_port(float, "The face cue is fresh this long (s)", default=2.0, minimum=0),
     }
     OUTPUT_PORTS: dict = {}
 
@@ -272,10 +278,11 @@ class HoverOnStale(py_trees.ports.PortsMixin, py_trees.decorators.Decorator):
         if cue is None or cue.age(now) > self.get_input("max_age_s"):
             if self.decorated.status == Status.RUNNING:
                 self.decorated.stop(Status.INVALID)  # the child hovers on halt
-            self.link.hover()
+            yaw = self._towards_face(now)
+            self.link.hover(yaw)
             self._stale_since = now if self._stale_since is None else self._stale_since
             give_up = self.get_input("give_up_after_s")
-            self.feedback_message = "target data stale: hover"
+            self.feedback_message = "target data stale: hover" + ("" if yaw is None else ", facing the cue")
             self.status = Status.FAILURE if give_up > 0 and now - self._stale_since >= give_up else Status.RUNNING
             if self.status != Status.RUNNING:
                 self.stop(self.status)
@@ -288,6 +295,16 @@ class HoverOnStale(py_trees.ports.PortsMixin, py_trees.decorators.Decorator):
         if self.status != Status.RUNNING:
             self.stop(self.status)
         yield self
+
+    def _towards_face(self, now: float) -> float | None:
+        """The ENU yaw from the aircraft to a fresh ``face`` cue; None without one (or on top of it)."""
+        cue: TargetCue | None = optional_input(self, "face")
+        if cue is None or cue.age(now) > self.get_input("face_max_age_s"):
+            return None
+        d = np.asarray(cue.position_enu[:2], float) - np.asarray(self.link.state.position_enu[:2], float)
+        if not np.all(np.isfinite(d)) or float(np.hypot(*d)) < 1.0:
+            return None
+        return math.atan2(float(d[1]), float(d[0]))
 
     def update(self) -> Status:
         """Unused: :meth:`tick` decides the status."""

@@ -5,7 +5,10 @@ the camera looks from the vehicle's pose, re-plan when the step is reached, and 
 one GUIDED position target facing along the move. The belief starts from the cue on
 ``/target/cue`` and moves as ``dynamics`` says: the paper's random walk at the target's expected
 speeds, or drifting with the cue's own velocity (paper section 5), so a target lost while it
-flew on is searched for where it went rather than where it was; the search state is published on ``/search/belief`` (a SearchSnapshot: belief,
+flew on is searched for where it went rather than where it was. A cue that has left the grid's area
+by less than its half width moves the grid to centre on it (a search that will not start would leave
+the aircraft holding while the target flies on); farther, the search fails. The search state is
+published on ``/search/belief`` (a SearchSnapshot: belief,
 gain, set-point) for plots and logs. RUNNING until halted (vision acquired, the pilot, a timeout);
 FAILURE (and hover) without a cue, outside GUIDED or disarmed, when the belief cannot be built, or
 when the vehicle flies no closer to its set-points for ``stall_s`` (the autopilot refuses them).
@@ -15,6 +18,7 @@ from __future__ import annotations
 
 import abc
 import enum
+import logging
 import math
 from typing import Any
 
@@ -31,6 +35,7 @@ from chaser_bt.tree import input_port, output_port, register_behaviour
 from chaser_bt.vision import CameraModel
 
 Status = py_trees.common.Status
+log = logging.getLogger(__name__)
 
 
 class TargetMotion(enum.Enum):
@@ -45,7 +50,8 @@ class _BeliefSearch(CommandingBehaviour):
 
     INPUT_PORTS = {
         "cue": input_port(TargetCue, "Last target cue: the belief starts from it", default_key="/target/cue"),
-        "grid_center": input_port(list[float], "ENU centre of the search grid (the radar), m", default=[0.0, 0.0, 0.0], length=3),
+        "grid_center": input_port(list[float], "ENU centre of the search grid (the radar), m; a cue outside the grid "
+                                  "by less than half_width_m moves it onto the cue", default=[0.0, 0.0, 0.0], length=3),
         "half_width_m": input_port(float, "Grid half-width east and north (m)", default=400.0, above=0),
         "z_max_m": input_port(float, "Grid top above the centre's floor (m)", default=200.0, minimum=0),
         "spacing_m": input_port(float, "Grid spacing (m)", default=20.0, above=0),
@@ -105,9 +111,13 @@ class _BeliefSearch(CommandingBehaviour):
         cue = self.get_input("cue")
         if not isinstance(cue, TargetCue):
             raise BeliefError(f"no target cue on the blackboard (got {type(cue).__name__})")
-        center = self.get_input("grid_center")
-        spec = GridSpec.around(center, self.get_input("half_width_m"), center[2], center[2] + self.get_input("z_max_m"),
-                               self.get_input("spacing_m"))
+        center, half = self.get_input("grid_center"), self.get_input("half_width_m")
+        spec = GridSpec.around(center, half, center[2], center[2] + self.get_input("z_max_m"), self.get_input("spacing_m"))
+        off = np.abs(np.asarray(cue.position_enu[:2], float) - np.asarray(center[:2], float))
+        if not spec.contains(cue.position_enu) and np.all(off <= 2.0 * half):
+            # The target left the area by less than its half width: search around where it went, not hold.
+            spec = spec.centred_on(cue.position_enu)
+            log.info("%s: the cue lies outside the search area; the grid moves to centre on it", self.name)
         camera = CameraModel(max_range_m=self.get_input("max_range_m"), tilt_rad=math.radians(self.get_input("tilt_deg")),
                              p_detect=self.get_input("p_detect"))
         sensor = SensorModel(camera, spec)

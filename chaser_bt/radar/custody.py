@@ -155,6 +155,8 @@ class Custody:
         refused_ids: ids whose first report after the target's last confirmation missed its gate: a
             new track is judged where it appears, so a wider gate later does not let it in.
         misses: reports in a row of the carrying track outside the gate.
+        t_missed: the time of the last of them (the tree ticks faster than the radar reports, so a
+            picture may hold a report already judged: each report is one miss, however often seen).
         lost: unconfirmed past ``max_coast_s``; only a new designation ends it.
     """
 
@@ -170,6 +172,7 @@ class Custody:
     apart_ids: frozenset[int] = frozenset()
     refused_ids: frozenset[int] = frozenset()
     misses: int = 0
+    t_missed: float = -math.inf
     lost: bool = False
     beside: tuple[RadarTrack, ...] = field(default=(), repr=False)  # reports within crowd_m of it at the last one
     noted_t: float = field(default=-math.inf, repr=False)  # the report of it the other tracks were last judged against
@@ -314,7 +317,7 @@ def track_custody(c: Custody, picture: RadarPicture, params: CustodyParams | Non
     carrier = candidates.get(c.track_id) if c.track_id is not None else None
     if carrier is None and c.track_id is not None and c.track_id in picture.tracks and c.track_id not in picture.ownship_ids:
         carrier = picture.tracks[c.track_id]  # on the chaser itself now: a miss, as a report outside the gate
-    if carrier is not None and carrier.t > c.t_confirmed:
+    if carrier is not None and carrier.t > max(c.t_confirmed, c.t_missed):
         fit = _fit(c, carrier, p, carrier=True)
         on_self = carrier.track_id not in candidates
         if fit.inside and not on_self:
@@ -326,7 +329,7 @@ def track_custody(c: Custody, picture: RadarPicture, params: CustodyParams | Non
             c = replace(c, track_id=None, misses=0, apart_ids=c.apart_ids | {carrier.track_id})
             carrier = None
         else:
-            c = replace(c, misses=c.misses + 1)
+            c = replace(c, misses=c.misses + 1, t_missed=carrier.t)
     elif c.track_id is not None and carrier is None:
         why = "track ended" if c.track_id not in picture.tracks else "track taken for the ownship"
         crowd = f", {len(c.beside)} track(s) within {p.crowd_m:g} m" if c.beside else ""

@@ -15,7 +15,7 @@ Planners work on :meth:`BeliefGrid.normalized`, the belief given that the target
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -105,6 +105,15 @@ class GridSpec:
         hi = np.asarray(self.shape) - 1
         inside = np.all((raw >= 0) & (raw <= hi), axis=1) & np.all(np.isfinite(pts), axis=1)
         return np.clip(raw, 0, hi), inside
+
+    def centred_on(self, point_enu) -> GridSpec:
+        """The same grid moved horizontally by whole cells (its lattice kept) to centre on ``point_enu``."""
+        p = np.asarray(point_enu, dtype=float)
+        moved = list(self.origin_enu)
+        for a in (0, 1):
+            half = 0.5 * (self.shape[a] - 1) * self.spacing_m
+            moved[a] += round((p[a] - half - self.origin_enu[a]) / self.spacing_m) * self.spacing_m
+        return replace(self, origin_enu=tuple(moved))
 
     def contains(self, point_enu) -> bool:
         """Whether ``point_enu`` lies within half a cell of the grid's outer centres."""

@@ -563,8 +563,10 @@ class VehicleLink:
         self._send_rc((_RC_RELEASE,) * 4, rest=_RC_RELEASE)
         self.last_setpoint = Setpoint("rc_release", self._now())
 
-    def hover(self) -> bool:
-        """The safe "stop moving" for the current mode (DESIGN §3: a behaviour's exit command).
+    def hover(self, yaw_enu_rad: float | None = None) -> bool:
+        """The safe "stop moving" for the current mode (DESIGN §3: a behaviour's exit command); in
+        GUIDED, turning on the spot to ``yaw_enu_rad`` when given (the nose, and a fixed camera, towards
+        where the target was last reported), else keeping the heading.
 
         GUIDED: hold the current position (zero velocity if it is not known yet); STABILIZE/ALT_HOLD:
         centred sticks; LOITER, BRAKE, RTL, LAND and the rest already fly themselves: nothing.
@@ -580,10 +582,11 @@ class VehicleLink:
         if not s.armed:
             return False
         if s.mode == "GUIDED":
+            yaw = yaw_enu_rad if yaw_enu_rad is not None else (s.yaw_enu_rad if math.isfinite(s.yaw_enu_rad) else None)
             if self.frame is not None and np.all(np.isfinite(s.position_enu)):
-                self._goto_enu(s.position_enu, s.yaw_enu_rad if math.isfinite(s.yaw_enu_rad) else None)
+                self._goto_enu(s.position_enu, yaw)
             else:
-                self.velocity_enu((0.0, 0.0, 0.0))
+                self.velocity_enu((0.0, 0.0, 0.0), yaw_enu_rad=yaw_enu_rad)
             return True
         if s.mode in _HOVER_BY_STICKS:
             self.rc_override(_RC_CENTRE, _RC_CENTRE, _RC_CENTRE, _RC_CENTRE)

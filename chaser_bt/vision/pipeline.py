@@ -101,6 +101,14 @@ class PipelineConfig:
             with this time constant; once the followed track's exceeds ``cue_switch_sigma`` and
             another's is a sigma lower, the pipeline follows the other (the trackers slid onto a
             drone crossing close by). ``inf`` never switches.
+        cue_fusion_max_age_s, cue_speed_std_mps, cue_range_floor_m: a cue at most this old (the radar's
+            report of the target) gives the range filter its position seen along the camera's bearing,
+            with the cue's own error along it widened by ``cue_range_floor_m`` (our own position,
+            timing, the target's size: :meth:`~chaser_bt.vision.range.RangeFilter.fuse_range`), and,
+            with a velocity, the target's speed along the bearing, told with ``cue_speed_std_mps``
+            (:meth:`~chaser_bt.vision.range.RangeFilter.update_radial_speed`): a distant target is not read
+            too close from its few-pixel box, nor a target dashing at the camera too far until its box
+            has grown. 0 s: box sizes alone.
     """
 
     detect_every: int = 3
@@ -128,6 +136,9 @@ class PipelineConfig:
     track_margin_px: float = 64.0
     cue_fit_tau_s: float = 1.0
     cue_switch_sigma: float = 2.5
+    cue_fusion_max_age_s: float = 1.0
+    cue_speed_std_mps: float = 1.0
+    cue_range_floor_m: float = 3.0
 
 
 @dataclass(frozen=True)
@@ -299,6 +310,9 @@ class VisionPipeline:
             # every detection is zoomed, and those are all there is.
             self.last_box_range_m = range_from_box(track.box, span, 0.5 * self.camera.width_px, fx)
             self.range_filter.update_box(frame.t, track.box, span, 0.5 * self.camera.width_px, fx)
+        fuse_age = self.config.cue_fusion_max_age_s
+        if target_range_m is None and cue is not None and fuse_age > 0.0 and 0.0 <= frame.t - cue.t <= fuse_age:
+            self._fuse_cue(frame.t, cue, cam, bearing)
         r, r_std = self.range_filter.range_m, self.range_filter.range_std_m
         if not math.isfinite(r):
             return None
@@ -309,6 +323,15 @@ class VisionPipeline:
                                             track_id=track.track_id, bearing_enu=bearing, range_m=r, range_std_m=r_std,
                                             confidence=float(min(max(conf, 0.0), 1.0)))
         return self.last_estimate
+
+    def _fuse_cue(self, t: float, cue: TargetCue, camera_enu: np.ndarray, bearing: np.ndarray) -> None:
+        """The range filter takes a fresh cue's position along the bearing, and its velocity along it."""
+        c = self.config
+        along = float(np.dot(cue.position_at(t) - camera_enu, bearing))
+        std = math.sqrt(float(bearing @ cue.covariance_enu @ bearing) + c.cue_range_floor_m**2)
+        self.range_filter.fuse_range(t, along, std)
+        if cue.velocity_enu is not None:
+            self.range_filter.update_radial_speed(float(np.dot(cue.velocity_enu, bearing)), c.cue_speed_std_mps)
 
     def _focus(self, ownship: OwnshipPose, attitude: Rotation, camera_enu: np.ndarray,
                cue_enu: np.ndarray | None) -> tuple[FocusWindow | None, bool]:

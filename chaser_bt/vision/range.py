@@ -11,7 +11,12 @@ Two estimators over the same measurement, the box's angular width and the target
   reseed) are gated out by their normalised innovation.
 
 When the mission has the target's telemetry (the paper's flights), :meth:`RangeFilter.update_known`
-takes the true distance instead, with its own small error.
+takes the true distance instead, with its own small error. When a radar tracks the target, its
+report adds two measurements: :meth:`RangeFilter.fuse_range`, the radar's position seen along the
+camera's bearing (a few metres off at any range, where a box of a few pixels reads a distant target
+far too close), and :meth:`RangeFilter.update_radial_speed`, its velocity along the bearing (box sizes
+alone learn a target's dash at the chaser only over seconds, too late to back off before it passes
+under the camera).
 """
 
 from __future__ import annotations
@@ -101,6 +106,32 @@ class RangeFilter:
         self.rejected = 0
         kf.update(np.array([[z]]), R=np.array([[std**2]]))
         kf.x[0, 0] = max(kf.x[0, 0], self.min_range_m)
+        return True
+
+    def update_radial_speed(self, speed_mps: float, std_mps: float) -> None:
+        """Fold in the target's speed along the bearing at the filter's time (after :meth:`predict`; m/s,
+        away from the camera positive), measured by another sensor (the radar track's velocity dotted
+        with the camera's bearing). Nothing before a range has started the filter: a speed alone places
+        nothing."""
+        if self.kf is None or not (math.isfinite(speed_mps) and std_mps > 0.0):
+            return
+        self.kf.update(np.array([[float(speed_mps)]]), R=np.array([[std_mps**2]]), H=np.array([[0.0, 1.0]]))
+        self.kf.x[0, 0] = max(self.kf.x[0, 0], self.min_range_m)
+
+    def fuse_range(self, t: float, range_m: float, std_m: float, max_ratio: float = 4.0) -> bool:
+        """Fold in a range measured by another sensor (the radar's target position, seen along the
+        camera's bearing). It is dropped only when it is more than ``max_ratio`` times the estimate
+        or less than its ``1 / max_ratio`` (another object on the bearing), never on the filter's own
+        sigma: the boxes of a distant target read it far too close, with a confidence their own
+        error model cannot know is misplaced, and this is the measurement that corrects them. Never
+        restarts the filter. False when dropped."""
+        if self.kf is None or not (math.isfinite(range_m) and range_m > 0.0 and std_m > 0.0):
+            return False
+        r = float(self.kf.x[0, 0])
+        if not r / max_ratio <= range_m <= r * max_ratio:
+            return False
+        self.kf.update(np.array([[float(range_m)]]), R=np.array([[std_m**2]]))
+        self.kf.x[0, 0] = max(self.kf.x[0, 0], self.min_range_m)
         return True
 
     def update_box(self, t: float, box: tuple[float, float, float, float], span_m: float, cx: float, fx: float) -> bool:

@@ -258,6 +258,7 @@ def rehearse(
             if observer.following():
                 outcome = "following"
                 message = f"following at the time limit of {scenario.time_limit_s:.0f} s: {runner.tip_message()}"
+            runner.stop(f"the rehearsal's time limit of {scenario.time_limit_s:.0f} s")  # as an operator ends a mission
     except KeyboardInterrupt:  # Ctrl-C or SIGTERM: halt the tree, and report what was flown so far
         runner.stop("interrupted by the operator")
         interrupted = True

@@ -144,6 +144,34 @@ HoverOnStale:
     assert follow.status == Status.RUNNING and follower.link.last_setpoint.values != CENTRED
 
 
+def test_hover_on_stale_turns_towards_a_fresh_face_cue_and_holds_its_place(follower):
+    """The camera has lost the target (no estimate at all) while the radar reports it 60 m south: the
+    hover turns the nose, and the fixed camera, towards it, on the spot; without the radar it keeps
+    its heading."""
+    start = follower.link.state.position_enu.copy()
+    assert abs(math.remainder(follower.link.state.yaw_enu_rad - math.radians(-90.0), 2 * math.pi)) > math.radians(45.0)
+
+    def radar() -> None:
+        py_trees.blackboard.Blackboard.set("/target/face", TargetCue(follower.clock.now(), start + [0.0, -60.0, -10.0]))
+
+    runner = runner_for(follower, """
+HoverOnStale:
+  target: "{@target/estimate}"
+  face: "{@target/face}"
+  child:
+    Hover: {}
+""")
+    _fly_for(follower, runner, 8.0, each=radar)
+    assert runner.status == Status.RUNNING and "facing the cue" in runner.tip_message()
+    yaw = follower.link.state.yaw_enu_rad
+    assert abs(math.remainder(yaw - math.radians(-90.0), 2 * math.pi)) < math.radians(5.0)
+    assert np.linalg.norm(follower.link.state.position_enu[:2] - start[:2]) < 3.0
+    py_trees.blackboard.Blackboard.unset("/target/face")
+    still = runner_for(follower, 'HoverOnStale: {target: "{@target/estimate}", face: "{@target/face}", child: {Hover: {}}}')
+    _fly_for(follower, still, 4.0)
+    assert abs(math.remainder(follower.link.state.yaw_enu_rad - yaw, 2 * math.pi)) < math.radians(3.0)
+
+
 def test_follow_global_in_guided_with_velocity_targets(follower):
     write, _ = _feed(follower)
     runner = runner_for(follower, "FollowGlobal: {output: guided, feed_forward: true}")

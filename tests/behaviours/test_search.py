@@ -88,6 +88,19 @@ def test_search_with_a_cue_off_the_grid_fails_with_the_reason(vehicle):
     assert "outside the search grid" in runner.tree.root.feedback_message
 
 
+def test_a_cue_just_outside_the_grid_moves_the_grid_onto_it_and_the_search_flies(vehicle):
+    """The target left the +-400 m area by 50 m: the search centres its grid on the cue (its lattice
+    kept) instead of failing and leaving the aircraft to hold while the target flies on."""
+    take_off(vehicle, 40)
+    write_cue(vehicle.clock.now(), [450.0, 0.0, 40.0])
+    runner = runner_for(vehicle, "RHCSearch: {horizon: 2}")
+    snaps = snapshots(vehicle, runner, 4.0)
+    assert runner.status == Status.RUNNING, runner.tip_message()
+    spec = snaps[-1].belief.spec
+    assert spec.contains([450.0, 0.0, 40.0]) and spec.shape[:2] == (41, 41)
+    assert spec.origin_enu[0] == pytest.approx(40.0) and spec.origin_enu[1] == pytest.approx(-400.0)
+
+
 def _belief_centre(snap: SearchSnapshot) -> np.ndarray:
     p = snap.belief.p / snap.belief.p.sum()
     return np.einsum("ijk,ijkl->l", p, snap.belief.spec.centers())

@@ -8,6 +8,7 @@ false success, or an aircraft left unsafe, fails the test.
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 
 from sitl.bench.rehearsal import rehearse
@@ -96,3 +97,19 @@ def test_a_transmitter_lost_with_guided_allowed_to_continue_completes_the_patrol
     assert report.mission_outcome == "completed", report.message
     assert report.outcome == "landed" and report.landed_dist_m < 1.0
     assert [text for _, text in seen["runner"].witness.texts] == ["Radio Failsafe - Continuing Guided Mode"]
+
+
+
+
+def test_a_rehearsal_cut_by_its_time_limit_stops_the_mission_where_it_was(tmp_path):
+    """The time limit ends the mission as an operator would, by halting the tree: its hold is sent, so the
+    aircraft is not left flying on along the leg it was on (10 m/s towards a waypoint 600 m east)."""
+    tree = tmp_path / "long_leg.yaml"
+    tree.write_text("version: 1\nmain: LongLeg\ntrees:\n  LongLeg:\n    Sequence:\n      children:\n"
+                    "        - ArmAndTakeoff: {altitude_m: 20}\n        - GoTo: {waypoint: [600.0, 0.0, 20.0]}\n")
+    seen = {}
+    report = rehearse(tree, _patrol_with(time_limit_s=FAULT_AT_S + 10.0), seed=1,
+                      on_start=lambda runner, vehicle, resources: seen.update(sim=vehicle.sim))
+    assert report.outcome == "timeout" and report.mission_outcome == "interrupted", report.message
+    sim = seen["sim"]  # the settle's end, 10 s after the cut: back towards where the hold was sent
+    assert 100.0 < sim.truth.pos_enu[0] < 200.0 and math.hypot(*sim.truth.vel_enu[:2]) < 3.0

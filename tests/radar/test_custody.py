@@ -305,3 +305,19 @@ def test_a_duplicate_of_the_targets_own_track_takes_it_over_when_the_carrier_dro
     c, ev = fly(start(0.0, target(0.0), (5, 0, 0)), pics)
     assert [e.kind for e in ev] == ["released", "handover"] and c.track_ids == (1, 3)
     assert "within" not in ev[0].reason  # not a crowd
+
+
+def test_one_report_outside_the_gate_is_one_miss_however_many_ticks_see_it():
+    """The tree ticks faster than the radar reports, so a picture can hold the same report twice; one
+    odd report (a gust on the tracker's velocity) is one miss, and the next good one keeps the track."""
+    c = start(pos=(0, 100, 30), vel=(5, 0, 0))
+    odd = track(1, 0.2, (1, 100, 30), (5, 3.8, 0))  # 3.8 m/s off: the carrier's gate is 2 + 8 * 0.2 = 3.6
+    c, ev = fly(c, [picture(0.2, odd), picture(0.3, odd)])
+    assert ev == [] and c.track_id == 1 and c.misses == 1
+    c, ev = fly(c, [picture(0.4, track(1, 0.4, (2, 100, 30), (5, 1.0, 0)))])
+    assert ev == [] and c.track_id == 1 and c.misses == 0 and c.t_confirmed == pytest.approx(0.4)
+    # Two reports in a row outside the gate still release it.
+    c, ev = fly(c, [picture(0.6, track(1, 0.6, (3, 100, 30), (5, 6.0, 0))),
+                    picture(0.8, track(1, 0.8, (4, 100, 30), (5, 8.0, 0)))])
+    assert [e.kind for e in ev] == ["released"]
+

@@ -200,3 +200,12 @@ def test_nan_dt_and_a_nan_belief_mid_search_are_errors_not_hangs():
     b.p[0, 0, 0] = np.nan
     with pytest.raises(BeliefError, match="non-finite"):
         GaussianDynamics().step(b, 1.0)
+
+
+def test_a_grid_centred_on_a_point_keeps_its_lattice_and_size():
+    spec = GridSpec.around([0.0, 0.0, 0.0], 400.0, 0.0, 100.0, 20.0)  # origin (-400, -400, 0), 41 x 41 x 6
+    moved = spec.centred_on([517.0, -93.0, 55.0])
+    assert moved.shape == spec.shape and moved.spacing_m == spec.spacing_m and moved.floored == spec.floored
+    # Centre (origin + 400) on the nearest lattice point to the target: 520, -100; heights untouched.
+    assert moved.origin_enu == (120.0, -500.0, 0.0)
+    assert moved.contains([517.0, -93.0, 55.0]) and not spec.contains([517.0, -93.0, 55.0])
