@@ -329,7 +329,7 @@ class VisionPipeline:
         c = self.config
         along = float(np.dot(cue.position_at(t) - camera_enu, bearing))
         std = math.sqrt(float(bearing @ cue.covariance_enu @ bearing) + c.cue_range_floor_m**2)
-        self.range_filter.fuse_range(t, along, std)
+        self.range_filter.fuse_range(along, std)
         if cue.velocity_enu is not None:
             self.range_filter.update_radial_speed(float(np.dot(cue.velocity_enu, bearing)), c.cue_speed_std_mps)
 

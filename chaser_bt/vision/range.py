@@ -28,6 +28,9 @@ from filterpy.kalman import KalmanFilter
 
 __all__ = ["TARGET_SPAN_M", "range_from_box", "RangeFilter"]
 
+_RANGE = np.array([[1.0, 0.0]])  # the measurement picks the state's range
+_RADIAL_SPEED = np.array([[0.0, 1.0]])  # or the target's speed along the bearing
+
 # Effective width (m) of each target kind as its box sees it: the widest horizontal extent seen
 # side-on, averaged over yaw (rotor discs included): the median over 534 rendered training views (10-90 %: +-8 %).
 # A person's box width varies far more (standing, lying, seen from any side: 10-90 % 0.42-1.81 m around
@@ -104,9 +107,13 @@ class RangeFilter:
                 return True
             return False
         self.rejected = 0
-        kf.update(np.array([[z]]), R=np.array([[std**2]]))
-        kf.x[0, 0] = max(kf.x[0, 0], self.min_range_m)
+        self._fold(z, std, _RANGE)
         return True
+
+    def _fold(self, z: float, std: float, h: np.ndarray) -> None:
+        """One Kalman update of the state's ``h`` component by ``z`` told with ``std``; the range floored."""
+        self.kf.update(np.array([[float(z)]]), R=np.array([[std**2]]), H=h)
+        self.kf.x[0, 0] = max(self.kf.x[0, 0], self.min_range_m)
 
     def update_radial_speed(self, speed_mps: float, std_mps: float) -> None:
         """Fold in the target's speed along the bearing at the filter's time (after :meth:`predict`; m/s,
@@ -115,23 +122,21 @@ class RangeFilter:
         nothing."""
         if self.kf is None or not (math.isfinite(speed_mps) and std_mps > 0.0):
             return
-        self.kf.update(np.array([[float(speed_mps)]]), R=np.array([[std_mps**2]]), H=np.array([[0.0, 1.0]]))
-        self.kf.x[0, 0] = max(self.kf.x[0, 0], self.min_range_m)
+        self._fold(speed_mps, std_mps, _RADIAL_SPEED)
 
-    def fuse_range(self, t: float, range_m: float, std_m: float, max_ratio: float = 4.0) -> bool:
+    def fuse_range(self, range_m: float, std_m: float, max_ratio: float = 4.0) -> bool:
         """Fold in a range measured by another sensor (the radar's target position, seen along the
         camera's bearing). It is dropped only when it is more than ``max_ratio`` times the estimate
         or less than its ``1 / max_ratio`` (another object on the bearing), never on the filter's own
         sigma: the boxes of a distant target read it far too close, with a confidence their own
-        error model cannot know is misplaced, and this is the measurement that corrects them. Never
-        restarts the filter. False when dropped."""
+        error model cannot know is misplaced, and this is the measurement that corrects them. At the
+        filter's time (after :meth:`predict`); never restarts the filter. False when dropped."""
         if self.kf is None or not (math.isfinite(range_m) and range_m > 0.0 and std_m > 0.0):
             return False
         r = float(self.kf.x[0, 0])
         if not r / max_ratio <= range_m <= r * max_ratio:
             return False
-        self.kf.update(np.array([[float(range_m)]]), R=np.array([[std_m**2]]))
-        self.kf.x[0, 0] = max(self.kf.x[0, 0], self.min_range_m)
+        self._fold(range_m, std_m, _RANGE)
         return True
 
     def update_box(self, t: float, box: tuple[float, float, float, float], span_m: float, cx: float, fx: float) -> bool:

@@ -102,7 +102,7 @@ def _far(radar: bool, wide: float) -> float:
         box = 150.0 / wide * (1.0 + rng.normal(0.0, 0.12))
         f.update_known(t, box, std_m=0.12 * box)
         if radar:
-            f.fuse_range(t, 150.0 + rng.normal(0.0, 6.0), 6.0)
+            f.fuse_range(150.0 + rng.normal(0.0, 6.0), 6.0)
     return f.range_m
 
 
@@ -121,5 +121,5 @@ def test_a_radar_range_of_another_object_is_dropped_and_never_restarts_the_filte
     for k in range(20):
         f.predict(0.1 * k, np.zeros(3), np.array([1.0, 0.0, 0.0]))
         f.update_known(0.1 * k, 30.0, std_m=3.0)
-        assert not f.fuse_range(0.1 * k, 300.0, 5.0)
+        assert not f.fuse_range(300.0, 5.0)
     assert f.range_m == pytest.approx(30.0, abs=0.5)
