@@ -85,6 +85,8 @@ class TargetTelemetryCue(VehicleBehaviour):
 class _Follow(CommandingBehaviour):
     """Shared by the follow leaves: mode switch, controller, one command per control step."""
 
+    _via = ""  # what the target data came from when not the leaf's own target, for the feedback message
+
     COMMON_PORTS = {
         "slant_range_m": input_port(float, "Slant range set-point (m)", default=40.0, above=0),
         "elevation_deg": input_port(float, "Elevation above the target set-point (deg)", default=40.0, minimum=-90, maximum=90),
@@ -99,6 +101,8 @@ class _Follow(CommandingBehaviour):
         "give_up_after_s": input_port(float, "FAILURE after this long stale (s); 0 = keep hovering", default=0.0, minimum=0),
         "min_range_m": input_port(float, "Closer than this slant range (m), GUIDED backs off along the line of sight "
                                   "and climbs; 0 = off", default=0.0, minimum=0),
+        "max_closing_mps": input_port(float, "GUIDED closes on the set-point at most this much faster than the target "
+                                      "moves (m/s); 0 = no limit", default=0.0, minimum=0, maximum=50),
         "state": state_port(),
     }
 
@@ -130,7 +134,8 @@ class _Follow(CommandingBehaviour):
                                   stale_after_s=self.get_input("stale_after_s"),
                                   max_lean_rad=math.radians(self.get_input("max_lean_deg")) or None,
                                   measured_rates=self.get_input("measured_rates"),
-                                  min_range_m=self.get_input("min_range_m"), **self.config_options())
+                                  min_range_m=self.get_input("min_range_m"),
+                                  max_closing_mps=self.get_input("max_closing_mps"), **self.config_options())
         except ValueError as e:
             self.controller = None
             self._refused = f"follow settings refused: {e}"
@@ -181,7 +186,7 @@ class _Follow(CommandingBehaviour):
             else:
                 link.velocity_enu(cmd.velocity_enu, yaw_rate=cmd.yaw_rate)
         pv = cmd.pv
-        self.feedback_message = (f"az {math.degrees(pv.azimuth_rad):+.0f} deg, ground {pv.ground_range_m:.1f} m, "
+        self.feedback_message = (f"{self._via}az {math.degrees(pv.azimuth_rad):+.0f} deg, ground {pv.ground_range_m:.1f} m, "
                                  f"height {pv.rel_height_m:.1f} m")
         return Status.RUNNING
 
@@ -206,6 +211,9 @@ class CVFollow(_Follow):
                                 "{@target/telemetry} for the target's own GPS); unset: range from vision", required=False),
         "velocity_cue": input_port(TargetCue, "Optional cue whose velocity is the target's (remap it to the radar cue, "
                                    "{@target/cue}); unset: differenced vision positions", required=False),
+        "coast_cue": input_port(TargetCue, "Optional cue the follow flies on while the vision estimate is stale and this "
+                                "is fresh (remap it to the radar cue, {@target/cue}); unset: hover on stale data",
+                                required=False),
         "range_smoothing_s": input_port(float, "Vision range low-pass time constant (s): keep the bearing, slow the "
                                         "range; 0 = use the estimate as it is", default=0.0, minimum=0),
         **_Follow.COMMON_PORTS,
@@ -221,6 +229,12 @@ class CVFollow(_Follow):
 
     def target(self) -> TargetCue | None:
         est: TargetEstimate | None = optional_input(self, "target")
+        self._via = ""
+        if est is None or est.age(self._now()) > self.get_input("stale_after_s"):
+            coast = self._fresh("coast_cue")
+            if coast is not None:
+                self._via = f"on {coast.source} cue: "
+                return coast
         if est is None:
             return None
         moving = self._fresh("velocity_cue")
@@ -243,7 +257,9 @@ class HoverOnStale(py_trees.ports.PortsMixin, py_trees.decorators.Decorator):
     can take over (paper section 2.2.1: from follow back to fly-to-cue or search). With ``face`` set
     to another sensor's cue (the radar's) and that cue fresh, the hover turns the nose, and a fixed
     camera, towards it: a target that passed under or beside the chaser is behind it, where the
-    camera cannot find it again while the heading is held.
+    camera cannot find it again while the heading is held. With ``coast`` set to another sensor's cue
+    and that cue fresh, stale data is no hover: the child flies on that cue (CVFollow's ``coast_cue``),
+    keeping pace with a target the camera lost for a moment instead of stopping while it flies on.
     """
 
     INPUT_PORTS = {
@@ -253,6 +269,9 @@ class HoverOnStale(py_trees.ports.PortsMixin, py_trees.decorators.Decorator):
         "face": input_port(TargetCue, "Optional cue the hover turns towards while fresh (remap it to the radar cue, "
                            "{@target/cue}); unset: the heading is held", required=False),
         "face_max_age_s": input_port(float, "The face cue is fresh this long (s)", default=2.0, minimum=0),
+        "coast": input_port(TargetCue, "Optional cue that keeps the child flying while the watched data is stale and "
+                            "this is fresh, max_age_s (remap it to the cue the child flies on then, CVFollow's "
+                            "coast_cue); unset: hover", required=False),
     }
     OUTPUT_PORTS: dict = {}
 
@@ -274,8 +293,7 @@ class HoverOnStale(py_trees.ports.PortsMixin, py_trees.decorators.Decorator):
         if self.status != Status.RUNNING:
             self.initialise()
         now = self.clock.now()
-        cue = optional_input(self, "target")
-        if cue is None or cue.age(now) > self.get_input("max_age_s"):
+        if self._stale(now):
             if self.decorated.status == Status.RUNNING:
                 self.decorated.stop(Status.INVALID)  # the child hovers on halt
             yaw = self._towards_face(now)
@@ -295,6 +313,12 @@ class HoverOnStale(py_trees.ports.PortsMixin, py_trees.decorators.Decorator):
         if self.status != Status.RUNNING:
             self.stop(self.status)
         yield self
+
+    def _stale(self, now: float) -> bool:
+        """Neither the watched data nor the ``coast`` cue is younger than ``max_age_s``."""
+        max_age = self.get_input("max_age_s")
+        return all(cue is None or cue.age(now) > max_age
+                   for cue in (optional_input(self, "target"), optional_input(self, "coast")))
 
     def _towards_face(self, now: float) -> float | None:
         """The ENU yaw from the aircraft to a fresh ``face`` cue; None without one (or on top of it)."""

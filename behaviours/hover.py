@@ -9,6 +9,9 @@ from chaser_bt.tree import input_port, register_behaviour
 
 Status = py_trees.common.Status
 
+#: The longest hold a tree may ask for (s): a day, longer than any battery lasts (past it, a typo).
+MAX_HOLD_S = 86_400
+
 
 @register_behaviour
 class Hover(CommandingBehaviour):
@@ -19,7 +22,8 @@ class Hover(CommandingBehaviour):
     """
 
     INPUT_PORTS = {
-        "duration_s": input_port(float, "Hold this long (s); 0 = until halted", default=0.0, minimum=0),
+        "duration_s": input_port(float, "Hold this long (s); 0 = until halted", default=0.0, minimum=0,
+                                 maximum=MAX_HOLD_S),
         "state": state_port(),
     }
     OUTPUT_PORTS: dict = {}

@@ -24,6 +24,7 @@ import py_trees
 
 from behaviours.base import CommandingBehaviour, VehicleBehaviour, optional_input, state_port
 from behaviours.goto import WaypointFrame
+from behaviours.hover import MAX_HOLD_S
 from behaviours.vision import ESTIMATE_KEY
 from chaser_bt.cue import TargetCue, TargetEstimate
 from chaser_bt.control.cue_approach import approach_point
@@ -236,7 +237,8 @@ class LoiterOverFind(CommandingBehaviour):
         "height_m": input_port(float, "Holding height above home (m)", default=20.0, above=0),
         "standoff_m": input_port(float, "Horizontal distance from the find, on the vehicle's side (m); 0 = above it",
                                  default=0.0, minimum=0),
-        "duration_s": input_port(float, "Hold this long (s); 0 = until halted", default=0.0, minimum=0),
+        "duration_s": input_port(float, "Hold this long (s); 0 = until halted", default=0.0, minimum=0,
+                                 maximum=MAX_HOLD_S),
         "retarget_m": input_port(float, "Move the station when the find moves this much (m)", default=2.0, minimum=0),
         "resend_s": input_port(float, "Re-send the position target this often (s)", default=1.0, minimum=0),
         "state": state_port(),

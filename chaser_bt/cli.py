@@ -34,6 +34,8 @@ __all__ = ["main"]
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 DEFAULT_SEED = 1  # rehearse's and sitl's: the same seed flies the same flight in both
+#: --camera-size's bounds, px a side: 8192 is a DCI 8K frame's width (a square frame of it is 200 MB).
+MIN_CAMERA_SIDE_PX, MAX_CAMERA_SIDE_PX = 16, 8192
 
 # Packages that bring their own sub-commands: each has ``add_command(subparsers)``.
 _COMMAND_MODULES = (
@@ -162,7 +164,9 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                    help="with --reload-from: FILE's tree NAME (else its main tree) replaces only the subtree NAME of "
                         "the mission, whose other nodes keep their progress (default: the whole tree)")
     p.add_argument("--camera", metavar="SOURCE", help="video file, stream URL or device index for the on-board camera (default: none)")
-    p.add_argument("--camera-size", type=_size, metavar="WxH", help="resize camera frames to this size, px (default: as captured)")
+    p.add_argument("--camera-size", type=_size, metavar="WxH",
+                   help=f"resize camera frames to this size, px, {MIN_CAMERA_SIDE_PX} to {MAX_CAMERA_SIDE_PX} a side "
+                        "(default: as captured)")
     p.add_argument("--perception", choices=("thread", "inline"), default="thread",
                    help="run the camera pipeline in its own thread beside the tick (default thread: the tick "
                         "reads its latest estimate) or inside the tick (inline)")
@@ -201,7 +205,8 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
                    help="how the mission learns the radar's pose: the appendix-A calibration flight (default) or a "
                         "survey (run takes the pose itself as a FILE)")
     p.add_argument("--no-camera", action="store_true", help="no rendered camera (trees without vision run faster)")
-    p.add_argument("--camera-size", type=_size, default=(640, 480), metavar="WxH", help="rendered camera size, px (default 640x480)")
+    p.add_argument("--camera-size", type=_size, default=(640, 480), metavar="WxH",
+                   help=f"rendered camera size, px, {MIN_CAMERA_SIDE_PX} to {MAX_CAMERA_SIDE_PX} a side (default 640x480)")
     p.add_argument("--camera-in-process", action="store_true",
                    help="draw the camera's frames in this process, not in a render process beside it (the same frames, slower)")
     p.add_argument("--no-telemetry", action="store_true", help="do not give the mission the intruders' own MAVLink position")
@@ -226,7 +231,8 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     p = command("sitl", _sitl, "start the built-in ArduCopter-compatible simulator on loopback")
     p.add_argument("--scenario", required=True, type=arg.scenario_file, metavar="FILE",
                    help="scenario file (sitl/scenarios/README.md) or a shipped scenario's name (`chaser-bt list`; required)")
-    p.add_argument("--speedup", type=arg.positive_float, default=1.0, metavar="X", help="simulated seconds per wall second (default 1)")
+    p.add_argument("--speedup", type=arg.speedup, default=1.0, metavar="X",
+                   help=f"simulated seconds per wall second, {arg.MIN_SPEEDUP:g} to {arg.MAX_SPEEDUP:g} (default 1)")
     p.add_argument("--seed", type=arg.seed, default=DEFAULT_SEED, metavar="N",
                    help=f"simulator seed, as rehearse's (default {DEFAULT_SEED})")
     p.add_argument("--tcp-port", type=arg.listen_port, default=5760, metavar="PORT",
@@ -437,6 +443,22 @@ def _rehearse(args: argparse.Namespace) -> int:
     scenario = _load_scenario(args.scenario)
     if args.time_limit is not None:
         scenario = dataclasses.replace(scenario, time_limit_s=min(scenario.time_limit_s, args.time_limit))
+    with contextlib.ExitStack() as held:
+        if args.report is not None:  # one rehearsal (or campaign) at a time writes into the report's folder
+            from sitl.bench.out_lock import OutDirError, lock_out_dir
+
+            try:
+                args.report.mkdir(parents=True, exist_ok=True)
+                held.enter_context(lock_out_dir(args.report, "--report", "rehearsal"))
+            except OSError as exc:
+                raise _BadInput(f"--report {args.report}: {exc.strerror or exc}") from None
+            except OutDirError as exc:
+                raise _BadInput(str(exc)) from None
+        return _rehearse_flight(args, tree, scenario)
+
+
+def _rehearse_flight(args: argparse.Namespace, tree, scenario) -> int:
+    """``rehearse`` once its inputs are read and its report folder is held."""
     from sitl.ardupilot.process import ArduPilotMissing
     from sitl.ardupilot.simulator import ArduPilotStopped
     from sitl.bench.rehearsal import AutopilotChoice, RehearsalInterrupted, SensorSetupError, rehearse
@@ -544,13 +566,17 @@ def _groot2_monitor(args: argparse.Namespace, tree):
 
 
 def _size(text: str) -> tuple[int, int]:
-    """``WxH`` -> (W, H), for argparse."""
+    """``WxH`` -> (W, H), for argparse: each side in [MIN_CAMERA_SIDE_PX, MAX_CAMERA_SIDE_PX]."""
     try:
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT such as 640x480, got {text!r}") from None
-    if w < 16 or h < 16:
-        raise argparse.ArgumentTypeError(f"camera size {text} is too small (at least 16x16)")
+    if w < MIN_CAMERA_SIDE_PX or h < MIN_CAMERA_SIDE_PX:
+        raise argparse.ArgumentTypeError(
+            f"camera size {text} is too small (at least {MIN_CAMERA_SIDE_PX}x{MIN_CAMERA_SIDE_PX})")
+    if w > MAX_CAMERA_SIDE_PX or h > MAX_CAMERA_SIDE_PX:
+        raise argparse.ArgumentTypeError(
+            f"camera size {text} is too large (at most {MAX_CAMERA_SIDE_PX}x{MAX_CAMERA_SIDE_PX})")
     return w, h
 
 

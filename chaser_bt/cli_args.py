@@ -127,6 +127,11 @@ groot2_port = _number(int, lambda v: 1 <= v <= 65534, "in 1-65534 (Groot2 serves
 MAX_TICK_RATE_HZ = 1000.0
 tick_rate = _number(float, lambda v: math.isfinite(v) and 0 < v <= MAX_TICK_RATE_HZ,
                     f"in (0, {MAX_TICK_RATE_HZ:g}] (Hz; the vehicle's clock counts milliseconds)")
+#: ``sitl --speedup``: the simulator alone runs a few hundred times real time on a laptop core, so past 1000 a
+#: speed-up is only "as fast as it can"; below 0.01 a simulated second takes more than a wall minute and a half.
+MIN_SPEEDUP, MAX_SPEEDUP = 0.01, 1000.0
+speedup = _number(float, lambda v: math.isfinite(v) and MIN_SPEEDUP <= v <= MAX_SPEEDUP,
+                  f"in [{MIN_SPEEDUP:g}, {MAX_SPEEDUP:g}] (simulated s per wall s)")
 
 
 def host_port(text: str) -> str:

@@ -26,11 +26,12 @@ def _yolo_folder(tmp_path: Path) -> str:
 
 
 def _odd_files(tmp_path: Path) -> None:
-    """Files no command can read: binary.bin (not UTF-8), empty.txt, and a scenario and a radar pose holding
-    an integer of 5000 digits (more than Python's int() reads from text), a pose with one of 400 (past a
-    float), and a good pose."""
+    """Files no command can read: binary.bin (not UTF-8), empty ones (empty.txt, .yaml, .mcap, .pt, .zip),
+    and a scenario and a radar pose holding an integer of 5000 digits (more than Python's int() reads from
+    text), a pose with one of 400 (past a float), and a good pose."""
     (tmp_path / "binary.bin").write_bytes(bytes(range(256)) * 4)
-    (tmp_path / "empty.txt").write_bytes(b"")
+    for name in ("empty.txt", "empty.yaml", "empty.mcap", "empty.pt", "empty.zip"):
+        (tmp_path / name).write_bytes(b"")
     (tmp_path / "huge.yaml").write_text(f"name: x\nhome: {{lat_deg: 1, lon_deg: 2, alt_m: {'9' * 5000}}}\n")
     (tmp_path / "huge.json").write_text(f'{{"lat_deg": 1, "lon_deg": 2, "yaw_deg": {"9" * 400}}}')
     (tmp_path / "good_pose.json").write_text('{"lat_deg": 1, "lon_deg": 2, "yaw_deg": 0}')
@@ -61,6 +62,10 @@ BAD_INPUTS = [
     (["rehearse", PATROL, "--scenario", SCENARIO, "--record", NO_DIR + "/f.mcap"], "--record"),
     (["rehearse", PATROL, "--scenario", SCENARIO, "--radar-pose", "calibratd"], "did you mean calibrated"),
     (["rehearse", PATROL, "--scenario", SCENARIO, "--camera-size", "640"], "--camera-size"),
+    (["rehearse", CHASE, "--scenario", SCENARIO, "--camera-size", "100000x100000"],
+     "--camera-size: camera size 100000x100000 is too large (at most 8192x8192)"),
+    (["rehearse", CHASE, "--scenario", SCENARIO, "--camera-size", "8x8"], "--camera-size: camera size 8x8 is too small"),
+    ([*RUN, "--camera-size", "8193x480"], "--camera-size: camera size 8193x480 is too large"),
     (["rehearse", PATROL, "--scenario", "{tmp}/missing.yaml"], "missing.yaml"),
     (["rehearse", PATROL], "--scenario"),
     (["run", PATROL, "--connect", "tcp:127.0.0.1:9", "--rate-hz", "-5"], "--rate-hz"),
@@ -71,6 +76,9 @@ BAD_INPUTS = [
     (["run", PATROL, "--connect", "tcp:127.0.0.1:9", "--origin", "42.5"], "--origin"),
     (["run", PATROL, "--connect", "tcp:127.0.0.1:9", "--radar-pose", "{tmp}/pose.json"], "--radar-pose"),
     (["sitl", "--scenario", SCENARIO, "--speedup", "0"], "--speedup"),
+    (["sitl", "--scenario", SCENARIO, "--speedup", "1e300"], "--speedup: expected a number in [0.01, 1000]"),
+    (["sitl", "--scenario", SCENARIO, "--speedup", "inf"], "--speedup: expected a number in [0.01, 1000]"),
+    (["sitl", "--scenario", SCENARIO, "--speedup", "1e-9"], "--speedup: expected a number in [0.01, 1000]"),
     (["sitl", "--scenario", SCENARIO, "--tcp-port", "99999"], "--tcp-port"),
     (["sitl", "--scenario", SCENARIO, "--udp-port", "-1"], "--udp-port"),
     (["sitl", "--scenario", SCENARIO, "--seed", "-1"], "--seed"),
@@ -122,6 +130,9 @@ BAD_INPUTS = [
     ([*RUN, "--signing-key", "{tmp}/binary.bin"], "--signing-key"),
     (["sitl", "--scenario", SCENARIO, "--signing-key", "{tmp}/empty.txt"], "--signing-key"),
     ([*RADAR, "--radar-pose", "{tmp}/binary.bin"], "binary.bin"),
+    ([*RUN, "--camera", "{tmp}/binary.bin"], "--camera {tmp}/binary.bin: not a video or image OpenCV can read"),
+    ([*RUN, "--camera", "{tmp}/empty.txt"], "--camera {tmp}/empty.txt: the file is empty"),
+    ([*RUN, "--camera", "{tmp}"], "--camera {tmp}: is a folder"),
     ([*RADAR, "--radar-pose", "{tmp}/huge.json"], "yaw_deg"),
     ([*RADAR, "--radar-pose", "{tmp}"], "--radar-pose"),
     ([*RADAR, "--radar-pose", "{tmp}/good_pose.json", "--radar-key", "{tmp}/binary.bin"], "--radar-key"),
@@ -130,6 +141,28 @@ BAD_INPUTS = [
     ([*RUN, "--uplink", "127.0.0.1:14650", "--uplink-key", "{tmp}/binary.bin"], "--uplink-key"),
     ([*RUN, "--uplink", "127.0.0.1:99999", "--uplink-key", "{tmp}/good_pose.json"], "port 99999 out of range"),
     (["designate", "5", "--to", "127.0.0.1:14650", "--key", "{tmp}/binary.bin"], "designate"),
+    # empty files wherever a file is read
+    (["show", "{tmp}/empty.yaml"], "{tmp}/empty.yaml: invalid tree"),
+    (["rehearse", "{tmp}/empty.yaml", "--scenario", SCENARIO], "{tmp}/empty.yaml: invalid tree"),
+    (["convert", "{tmp}/empty.yaml", "{tmp}/out.xml"], "{tmp}/empty.yaml: not converted"),
+    (["replay", "{tmp}/empty.mcap", PATROL], "{tmp}/empty.mcap: empty file, not an MCAP log"),
+    (["plot", "{tmp}/empty.mcap"], "{tmp}/empty.mcap: empty file, not an MCAP log"),
+    (["btlog", "{tmp}/empty.mcap", PATROL], "{tmp}/empty.mcap: empty file, not an MCAP log"),
+    (["calibrate", "{tmp}/empty.txt"], "empty.txt: empty file"),
+    ([*RADAR, "--radar-pose", "{tmp}/empty.txt"], "empty.txt:1: not JSON"),
+    ([*RADAR, "--radar-pose", "{tmp}/good_pose.json", "--radar-key", "{tmp}/empty.txt"], "--radar-key: {tmp}/empty.txt: empty"),
+    ([*RUN, "--signing-key", "{tmp}/empty.txt"], "--signing-key: {tmp}/empty.txt: empty"),
+    ([*RUN, "--uplink", "127.0.0.1:14650", "--uplink-key", "{tmp}/empty.txt"], "--uplink-key: {tmp}/empty.txt: empty"),
+    (["designate", "5", "--to", "127.0.0.1:14650", "--key", "{tmp}/empty.txt"], "designate: {tmp}/empty.txt: empty"),
+    (["retask", PATROL, "--to", "127.0.0.1:14650", "--key", "{tmp}/empty.txt", "--sysid", "1"], "retask: {tmp}/empty.txt: empty"),
+    (["retask", "{tmp}/empty.yaml", "--to", "127.0.0.1:14650", "--key", "{tmp}/good_pose.json", "--sysid", "1"], "empty.yaml"),
+    (["eval-detector", "--data", "{yolo}", "--weights", "{tmp}/empty.pt"], "--weights {tmp}/empty.pt: empty file, not detector weights"),
+    (["train-detector", "--data", "{yolo}", "--init", "{tmp}/empty.pt"], "--init {tmp}/empty.pt: empty file, not detector weights"),
+    (["train-refiner", "--data", "{yolo}", "--out", "r.pt", "--negatives-from", "{tmp}/empty.pt"],
+     "--negatives-from {tmp}/empty.pt: empty file, not detector weights"),
+    (["quantize-detector", "--calib", "{yolo}", "--weights", "{tmp}/empty.pt"],
+     "--weights {tmp}/empty.pt: empty file, not detector weights"),
+    (["import-footage", "{tmp}/empty.zip", "--out", "{tmp}/footage"], "empty.zip: not a zip archive"),
     (["designate", "-1", "--to", "127.0.0.1:14650", "--key", "{tmp}/good_pose.json"], "track id -1"),
     (["retask", "{tmp}/binary.bin", "--to", "127.0.0.1:14650", "--key", "{tmp}/good_pose.json", "--sysid", "1"], "binary.bin"),
     (["retask", PATROL, "--to", "127.0.0.1:14650", "--key", "{tmp}/good_pose.json", "--sysid", "300"], "--sysid 300"),
@@ -232,12 +265,8 @@ def test_a_campaign_refuses_an_output_folder_another_campaign_is_writing(tmp_pat
     """Two campaigns into one --out would both fly every run: the second is refused, naming the first's pid."""
     out = tmp_path / "c"
     out.mkdir()
-    holder = subprocess.Popen(
-        [sys.executable, "-c", "import sys; from pathlib import Path; from sitl.bench.campaign import lock_out_dir\n"
-                               "with lock_out_dir(Path(sys.argv[1])):\n    print('held', flush=True); sys.stdin.read()",
-         str(out)], cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    holder = _hold(out, "--out", "campaign")
     try:
-        assert holder.stdout.readline().strip() == "held"
         code = main(["campaign", PATROL, "--scenarios", SCENARIO, "--seeds", "1", "--workers", "1", "--quick",
                      "--no-camera", "--out", str(out)])
     finally:
@@ -250,6 +279,46 @@ def test_a_campaign_refuses_an_output_folder_another_campaign_is_writing(tmp_pat
 
     with lock_out_dir(out):  # the holder has ended: the folder is free again
         pass
+
+
+def _hold(folder: Path, option: str, command: str) -> subprocess.Popen:
+    """Another process holding ``folder`` (as ``command`` would) until its stdin closes."""
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sys; from pathlib import Path; from sitl.bench.out_lock import lock_out_dir\n"
+                               "with lock_out_dir(Path(sys.argv[1]), sys.argv[2], sys.argv[3]):\n"
+                               "    print('held', flush=True); sys.stdin.read()",
+         str(folder), option, command], cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    assert holder.stdout.readline().strip() == "held"
+    return holder
+
+
+@pytest.mark.parametrize("command", ["rehearsal", "campaign"])
+def test_a_rehearsal_refuses_a_report_folder_another_command_is_writing(command, tmp_path, capsys):
+    """Two ``rehearse --report DIR`` at once would both exit 0, the last writer's report winning: the second
+    is refused before it flies, naming the first's pid; a campaign's --out and a report folder share the lock."""
+    out = tmp_path / "report"
+    out.mkdir()
+    holder = _hold(out, "--out" if command == "campaign" else "--report", command)
+    try:
+        code = main(["rehearse", PATROL, "--scenario", SCENARIO, "--no-camera", "--no-radar", "--progress", "never",
+                     "--report", str(out)])
+    finally:
+        holder.communicate("", timeout=30)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert f"chaser-bt: --report {out} is in use by another {command} (pid {holder.pid}); wait for it" in err
+    assert not (out / "report.json").exists()  # nothing flown, nothing written
+
+
+@pytest.mark.parametrize("name, problem", [("empty.yaml", "empty tree file"), ("empty.xml", "malformed XML")])
+def test_validate_reports_an_empty_tree_file_as_its_problem(name, problem, tmp_path, capsys):
+    """``validate`` lists problems as FILE:LINE:COL lines (no ``chaser-bt:`` line): an empty file is one."""
+    path = tmp_path / name
+    path.write_bytes(b"")
+    assert main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.splitlines() == [err.splitlines()[0], f"{path}: 1 problem(s)"], err
+    assert err.startswith(f"{path}:1:1: {problem}"), err
 
 
 def test_an_unknown_option_shows_the_subcommands_usage(capsys):

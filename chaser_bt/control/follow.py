@@ -32,6 +32,13 @@ Options the paper left out:
   turns back at the chaser is not overrun into the camera's blind zone; a target's velocity fed
   forward cannot carry the chaser closer than the floor.
 
+- ``max_closing_mps``: a limit on the GUIDED range correction, the speed at which the chaser closes
+  on the set-point beyond the target's own velocity. An engagement 100 m out otherwise closes at
+  the speed limit: the airframe leans 30 degrees, which lifts a target near the horizon out of the
+  top of a fixed camera's view for the whole approach, and arrives at a closing speed the autopilot
+  cannot brake from in the set-point's distance (at 2.5 m/s^2, 13 m/s needs 34 m), so the target
+  passes under the camera.
+
 - ``range_smoothing_s``: lean on what the camera measures well. A camera estimate
   (:class:`~chaser_bt.cue.TargetEstimate`) has an accurate bearing and a poor range (box size;
   the paper's section 5: "too variable to use with the relative position controller, even with
@@ -92,6 +99,7 @@ class FollowConfig:
     max_lean_rad: float | None = None  # lean limit below the vehicle's ANGLE_MAX (keeps a fixed camera's view)
     min_range_m: float = 0.0  # > 0: closer than this (slant), GUIDED backs off along the line of sight
     backoff_gain: float = 1.0  # 1/s: m/s of back-off per metre inside min_range_m
+    max_closing_mps: float = 0.0  # > 0: GUIDED closes on (or opens from) the set-point at most this fast
 
     def __post_init__(self) -> None:
         if not self.slant_range_m > 0.0:
@@ -104,6 +112,8 @@ class FollowConfig:
             raise ValueError(f"max_lean_rad must be in (0, 90) deg, got {self.max_lean_rad}")
         if not self.range_smoothing_s >= 0.0:
             raise ValueError(f"range_smoothing_s must be >= 0, got {self.range_smoothing_s}")
+        if not self.max_closing_mps >= 0.0:
+            raise ValueError(f"max_closing_mps must be >= 0, got {self.max_closing_mps}")
         if not (self.min_range_m >= 0.0 and self.backoff_gain >= 0.0) or self.min_range_m >= self.slant_range_m:
             raise ValueError(f"min_range_m must be in [0, slant_range_m) and backoff_gain >= 0, got "
                              f"{self.min_range_m}, {self.backoff_gain}")
@@ -365,8 +375,11 @@ class FollowController:
         c = self.config
         d = cue.position_enu[:2] - pos[:2]
         los = d / gr if gr > 1e-6 else np.array([math.cos(yaw), math.sin(yaw)])
-        err = (gr - c.ground_range_sp) * los
-        v = vt[:2] + c.guided_position_gain * err
+        correction = c.guided_position_gain * (gr - c.ground_range_sp) * los
+        size = float(np.linalg.norm(correction))
+        if c.max_closing_mps > 0.0 and size > c.max_closing_mps:
+            correction *= c.max_closing_mps / size
+        v = vt[:2] + correction
         slant = float(np.linalg.norm(cue.position_enu - pos))
         if c.min_range_m > 0.0 and slant < c.min_range_m:  # too close: back off along the line of sight, and up
             v = v - c.backoff_gain * (c.min_range_m - slant) * los

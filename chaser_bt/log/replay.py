@@ -100,6 +100,8 @@ def read_log(path: str | Path) -> FlightLog:
     path = Path(path)
     if not path.is_file():
         raise LogError(f"{path}: is a folder, not a log file" if path.is_dir() else f"{path}: no such log file")
+    if path.stat().st_size == 0:
+        raise LogError(f"{path}: empty file, not an MCAP log")
     schemas: dict[int, Schema] = {}
     channels: dict[int, Channel] = {}
     metadata: dict[str, dict[str, str]] = {}

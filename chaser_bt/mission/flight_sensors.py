@@ -30,7 +30,7 @@ from chaser_bt.target_telemetry import TargetTelemetry
 from chaser_bt.vehicle.signing import SigningKeyError, load_key
 
 __all__ = ["FlightSensorOptions", "FlightSensorError", "PERCEPTION_MODES", "RESOURCE_FLAGS", "build_flight_sensors",
-           "check_sensors", "close_flight_sensors", "load_radar_pose"]
+           "check_camera_file", "check_sensors", "close_flight_sensors", "load_radar_pose"]
 
 log = logging.getLogger(__name__)
 
@@ -94,6 +94,31 @@ def check_sensors(tree: Any, options: FlightSensorOptions) -> None:
         load_radar_pose(options.radar_pose_file)
         _radar_verifier(options.radar_key_file)
     _uplink_key(options)
+    if options.camera is not None:
+        check_camera_file(options.camera)
+
+
+def check_camera_file(camera: str) -> None:
+    """Refuse a ``--camera`` that names a folder, or a file OpenCV cannot read a frame from (empty, not a
+    video). A device index, a device node or a stream URL is not opened here: that would take the camera."""
+    if camera.isdigit():  # a device index, as _camera reads it
+        return
+    path = Path(camera)
+    if path.is_dir():
+        raise FlightSensorError(f"--camera {camera}: is a folder, not a video file")
+    if not path.is_file():
+        return
+    if path.stat().st_size == 0:
+        raise FlightSensorError(f"--camera {camera}: the file is empty, not a video")
+    import cv2
+
+    capture = cv2.VideoCapture(str(path))
+    try:
+        readable = capture.isOpened() and capture.read()[0]
+    finally:
+        capture.release()
+    if not readable:
+        raise FlightSensorError(f"--camera {camera}: not a video or image OpenCV can read")
 
 
 def _uplink_key(options: FlightSensorOptions) -> bytes | None:

@@ -122,11 +122,15 @@ class AlwaysFailure(_ControlPorts, py_trees.behaviour.Behaviour, register=False)
         return Status.FAILURE
 
 
+#: The longest Wait a tree may ask for (s): a day, as Hover's longest hold (past it, a typo).
+MAX_WAIT_S = 86_400
+
+
 class Wait(BtcppInputs, _ControlPorts, py_trees.behaviour.Behaviour, register=False):
     """RUNNING until ``duration_s`` have passed on the mission clock, then SUCCESS (BT.CPP Sleep, in seconds)."""
 
     INPUT_PORTS: ClassVar[dict[str, Port]] = {
-        "duration_s": input_port(float, "seconds to wait"),
+        "duration_s": input_port(float, "seconds to wait", minimum=0, maximum=MAX_WAIT_S),
     }
     DURATION_PORT: ClassVar[str] = "duration_s"
     UNITS_PER_SECOND: ClassVar[float] = 1.0
@@ -135,14 +139,6 @@ class Wait(BtcppInputs, _ControlPorts, py_trees.behaviour.Behaviour, register=Fa
         super().__init__(name=name)
         self._clock: Clock | None = None
         self._start = 0.0
-
-    @classmethod
-    def check_ports(cls, values: Mapping[str, Any], child_count: int) -> PortCheck:
-        port = cls.DURATION_PORT
-        value = values.get(port)
-        if isinstance(value, (int, float)) and not isinstance(value, bool) and not value >= 0:
-            return [(port, f"{port} must be >= 0, got {value}")]
-        return []
 
     def setup(self, **kwargs: Any) -> None:
         self._clock = require_clock(self, kwargs)
@@ -245,6 +241,13 @@ class Sleep(Wait, register=False):
     INPUT_PORTS: ClassVar[dict[str, Port]] = {"msec": input_port(int, "milliseconds to sleep", btcpp_type="unsigned")}
     DURATION_PORT: ClassVar[str] = "msec"
     UNITS_PER_SECOND: ClassVar[float] = 1000.0
+
+    @classmethod
+    def check_ports(cls, values: Mapping[str, Any], child_count: int) -> PortCheck:
+        value = values.get("msec")
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and not value >= 0:
+            return [("msec", f"msec must be >= 0, got {value}")]
+        return []
 
 
 #: Every built-in node, in the order a model export lists them.

@@ -116,7 +116,7 @@ class Port(py_trees.ports.PortInformation):
             items = value
         else:
             items = [value]
-        if not self.infinite and any(_is_number(item) and math.isinf(item) for item in items):
+        if not self.infinite and any(isinstance(item, float) and math.isinf(item) for item in items):
             return finite_violation(value, allow_infinite=False)  # its own words: "too large for a float"
         for item in items:
             if not _is_number(item):
@@ -202,7 +202,11 @@ def finite_violation(value: Any, allow_infinite: bool = False) -> str | None:
 
 
 def _number(value: float) -> str:
-    """``0`` rather than ``0.0``: bounds read as a person writes them."""
+    """``0`` rather than ``0.0``, ``-1e+308`` rather than its 309 digits: numbers read as a person writes them."""
+    if isinstance(value, int):
+        return str(value) if abs(value) < 10**20 else f"an integer of {len(str(abs(value)))} digits"
+    if abs(value) >= 1e16:
+        return f"{value:g}"
     return str(int(value)) if float(value).is_integer() else str(value)
 
 

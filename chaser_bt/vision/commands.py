@@ -293,6 +293,8 @@ def _check_weights(path: str | Path, flag: str = "--weights") -> None:
 
     if not Path(path).is_file():
         raise ValueError(f"{flag} {path}: {'is a folder, not a file' if Path(path).is_dir() else 'no such file'}")
+    if Path(path).stat().st_size == 0:
+        raise ValueError(f"{flag} {path}: empty file, not detector weights (expected a .pt file train-detector wrote)")
     try:
         load_model(path)
     except (pickle.UnpicklingError, zipfile.BadZipFile, EOFError, KeyError, TypeError, RuntimeError, AttributeError) as exc:

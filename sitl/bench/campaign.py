@@ -22,7 +22,6 @@ been taken, and a chase retasked to a search is held to both: the chase until th
 from __future__ import annotations
 
 import argparse
-import contextlib
 import dataclasses
 import hashlib
 import inspect
@@ -47,6 +46,7 @@ import numpy as np
 
 from chaser_bt.cli_args import add_autopilot_arguments, output_dir, positive_int, scenario_set, tree_file
 from chaser_bt.log.trace import FlightTrace
+from sitl.bench.out_lock import OutDirError, lock_out_dir
 
 __all__ = [
     "CampaignConfig",
@@ -99,8 +99,6 @@ _OK_OUTCOMES = ("landed", "following", "completed")
 MAX_SEEDS = 100_000
 #: Seeds are the simulator's, as ``rehearse --seed`` takes them: integers in [0, 2^32).
 SEED_LIMIT = 2**32
-#: In the output folder: held locked (flock) by the campaign writing there; it names its pid.
-LOCK_FILE = ".campaign.lock"
 
 
 class CampaignError(ValueError):
@@ -168,44 +166,6 @@ def _seed_list(text: str) -> list[int]:
         return parse_seeds(text)
     except CampaignError as exc:
         raise argparse.ArgumentTypeError(str(exc).removeprefix("--seeds: ")) from None
-
-
-@contextlib.contextmanager
-def lock_out_dir(out: Path) -> Iterator[None]:
-    """Hold ``out`` for one campaign: an exclusive ``flock`` on ``out/.campaign.lock``, which names our pid.
-
-    Two campaigns writing into one folder would both fly every run and overwrite each other's results
-    and report; the second one is refused.
-
-    Raises:
-        CampaignError: another campaign holds the folder (naming its pid), or the lock file cannot be opened.
-    """
-    try:
-        import fcntl
-    except ImportError:  # not POSIX: no lock
-        yield
-        return
-    path = Path(out) / LOCK_FILE
-    try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-    except OSError as exc:
-        raise CampaignError(f"--out {out}: cannot open {path.name} ({exc.strerror or exc})") from None
-    try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "?"
-            raise CampaignError(f"--out {out} is in use by another campaign (pid {holder}); wait for it to end, "
-                                "or give another --out") from None
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
-        try:
-            yield
-        finally:
-            os.ftruncate(fd, 0)
-            fcntl.flock(fd, fcntl.LOCK_UN)
-    finally:
-        os.close(fd)
 
 
 def _digest(*paths: Path) -> str:
@@ -646,19 +606,25 @@ def run_campaign(
         report: write ``campaign.json``, ``campaign.md`` and the figures at the end.
 
     Raises:
-        CampaignError: bad input, or another campaign is writing into ``config.out_dir`` (nothing is flown).
+        CampaignError: bad input (nothing is flown).
+        OutDirError: another command is writing into ``config.out_dir`` (nothing is flown).
         KeyboardInterrupt: passed on after the runs finished so far are stored (re-run to resume).
+
+    ``config.report_only`` takes no lock: it only reads the stored runs (each written whole by an atomic
+    rename) and writes the report, so it can report a campaign still flying into the folder.
     """
     _check_inputs(config)
     out = config.out_dir
     out.mkdir(parents=True, exist_ok=True)
-    with lock_out_dir(out):
+    if config.report_only:
+        return _run_locked(config, runner, on_start, on_result, report)
+    with lock_out_dir(out, "--out", "campaign"):
         return _run_locked(config, runner, on_start, on_result, report)
 
 
 def _run_locked(config: CampaignConfig, runner: Callable[[RunSpec], dict], on_start: Callable[[int, int], None] | None,
                 on_result: Callable[[int, int, dict], None] | None, report: bool) -> CampaignResult:
-    """:func:`run_campaign` once the output folder is ours."""
+    """:func:`run_campaign` once the output folder is ours (or, for ``report_only``, without holding it)."""
     out = config.out_dir
     specs = config.specs()
     retry = not config.report_only
@@ -1014,7 +980,7 @@ def _campaign_command(args: argparse.Namespace) -> int:
             result = run_campaign(config, on_start=progress.begin, on_result=progress)
         finally:
             progress.close()
-    except CampaignError as exc:
+    except (CampaignError, OutDirError) as exc:
         print(f"chaser-bt: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

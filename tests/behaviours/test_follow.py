@@ -238,3 +238,65 @@ def test_a_minimum_range_not_below_the_set_point_is_refused_by_validate_and_fail
     _fly_for(follower, runner, 2.0, each=write)
     assert runner.finished and runner.status == py_trees.common.Status.FAILURE
     assert "follow settings refused: min_range_m must be in [0, slant_range_m)" in runner.tip_message()
+
+
+COASTED_FOLLOW = """
+HoverOnStale:
+  target: "{@target/estimate}"
+  coast: "{@target/radar}"
+  child:
+    CVFollow: {output: guided, feed_forward: true, coast_cue: "{@target/radar}"}
+"""
+
+
+def _camera_and_radar(follower):
+    """Writers of a vision estimate on the true bearing and range, and of a radar cue of the target 3 m off
+    its true position; each writes only while its flag is on."""
+    on = {"camera": True, "radar": True}
+    bb = py_trees.blackboard.Blackboard
+
+    def write() -> None:
+        t, it = follower.clock.now(), follower.sim.intruders[0]
+        cam = follower.link.state.position_enu
+        rel = it.pos - cam
+        rng = float(np.linalg.norm(rel))
+        if on["camera"]:
+            bb.set("/target/estimate", TargetEstimate(t, it.pos.copy(), bearing_enu=rel / rng, range_m=rng,
+                                                      range_std_m=3.0, confidence=0.9, source="vision"))
+        if on["radar"]:
+            bb.set("/target/radar", TargetCue(t, it.pos + [3.0, 0.0, 0.0], velocity_enu=it.vel.copy(), source="radar"))
+    return write, on
+
+
+def test_a_follow_whose_camera_goes_stale_flies_on_a_fresh_coast_cue_then_hovers_when_that_goes_stale_too(follower):
+    """The camera loses the target for 10 s while the radar still reports it: the follow keeps flying
+    after it on the radar (no hover) and holds the set-point's ground range within a few metres while
+    the target moves on; once the radar is silent too, it hovers."""
+    write, on = _camera_and_radar(follower)
+    runner = runner_for(follower, COASTED_FOLLOW)
+    _fly_for(follower, runner, 25.0, each=write)
+    on["camera"] = False
+    target_from = follower.sim.intruders[0].pos.copy()
+    ranges = []
+
+    def coast() -> None:
+        write()
+        d = follower.sim.intruders[0].pos - follower.sim.truth.pos_enu
+        ranges.append(math.hypot(d[0], d[1]))
+    _fly_for(follower, runner, 10.0, each=coast)
+    assert np.linalg.norm(follower.sim.intruders[0].pos[:2] - target_from[:2]) > 15.0  # the target moved on
+    assert runner.status == Status.RUNNING and "on radar cue" in runner.tip_message(), runner.tip_message()
+    assert follower.link.last_setpoint.kind == "velocity"
+    assert np.percentile(np.abs(np.asarray(ranges[-50:]) - 30.64), 90) < 6.0
+    on["radar"] = False
+    _fly_for(follower, runner, 3.0, each=write)
+    assert "target data stale: hover" in runner.tip_message()
+
+
+def test_without_a_coast_cue_a_stale_camera_hovers_though_the_radar_is_fresh(follower):
+    write, on = _camera_and_radar(follower)
+    runner = runner_for(follower, 'HoverOnStale: {target: "{@target/estimate}", child: {CVFollow: {output: guided}}}')
+    _fly_for(follower, runner, 25.0, each=write)
+    on["camera"] = False
+    _fly_for(follower, runner, 3.0, each=write)
+    assert "target data stale: hover" in runner.tip_message()

@@ -149,3 +149,25 @@ def test_closed_loop_on_a_point_mass_reaches_the_set_point(use_roll, az_tol_deg)
     assert abs(pv.azimuth_rad) < math.radians(az_tol_deg)
     assert pv.ground_range_m == pytest.approx(c.ground_range_sp, abs=0.5)
     assert pv.rel_height_m == pytest.approx(c.height_sp, abs=0.3)
+
+
+def test_a_closing_limit_caps_the_range_correction_not_the_targets_own_velocity():
+    """Set-point ground range 22.55 m (24 m at 20 deg); a target 100 m north. The range term asks for
+    0.5 x (100 - 22.55) = 38.7 m/s north, cut to the 20 m/s speed limit; with a closing limit of 8 m/s
+    the chaser flies 8 m/s north at a hovering target, and 10 + 8 = 18 m/s at one flying north at 10."""
+    own = np.array([0.0, 0.0, 30.0])
+    c = dict(slant_range_m=24.0, elevation_rad=math.radians(20.0), feed_forward=True)
+    still = cue(0.0, [0.0, 100.0, 22.0], [0.0, 0.0, 0.0])
+    fleeing = cue(0.0, [0.0, 100.0, 22.0], [0.0, 10.0, 0.0])
+    free = FollowController(FollowConfig(**c)).update(0.0, own, np.zeros(3), math.radians(90), still)
+    assert math.hypot(*free.velocity_enu[:2]) == pytest.approx(20.0, abs=1e-6)
+    capped = FollowController(FollowConfig(**c, max_closing_mps=8.0)).update(0.0, own, np.zeros(3), math.radians(90), still)
+    assert capped.velocity_enu[1] == pytest.approx(8.0, abs=1e-6) and abs(capped.velocity_enu[0]) < 1e-9
+    after = FollowController(FollowConfig(**c, max_closing_mps=8.0)).update(0.0, own, np.zeros(3), math.radians(90), fleeing)
+    assert after.velocity_enu[1] == pytest.approx(18.0, abs=1e-6)
+    near = cue(0.0, [0.0, 30.0, 22.0], [0.0, 0.0, 0.0])  # 7.45 m beyond the set-point: 3.7 m/s, under the cap
+    assert FollowController(FollowConfig(**c, max_closing_mps=8.0)).update(0.0, own, np.zeros(3), math.radians(90), near
+                                                                          ).velocity_enu[1] == pytest.approx(
+        0.5 * (30.0 - 24.0 * math.cos(math.radians(20.0))), abs=1e-6)
+    with pytest.raises(ValueError, match="max_closing_mps"):
+        FollowConfig(max_closing_mps=-1.0)

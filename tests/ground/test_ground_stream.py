@@ -309,15 +309,23 @@ class _StillCamera:
         """Nothing to release."""
 
 
+def _still_camera_sensor():
+    """The still scene through a pipeline whose detector always finds the drone in the middle."""
+    from chaser_bt.vision.camera import CameraModel
+    from chaser_bt.vision.detection import Detection
+    from chaser_bt.vision.pipeline import CameraSensor, PipelineConfig, VisionPipeline
+
+    detector = lambda image: [Detection((250.0, 180.0, 330.0, 240.0), 0.9, 0, "s1000")]  # noqa: E731
+    return CameraSensor(_StillCamera(), VisionPipeline(CameraModel(width_px=640, height_px=480), detector,
+                                                       PipelineConfig(detect_every=1, tracker_kinds=(), focus=False)))
+
+
 def test_stream_to_ground_sends_status_tracks_cue_estimate_and_boxed_video_and_keeps_running(scenario):
     from chaser_bt.mission.runner import MissionRunner
     from chaser_bt.radar.feed import RadarFeed, RadarNoise
     from chaser_bt.radar.geometry import RadarPose
     from chaser_bt.radar.stream import QueueDatagramSource
     from chaser_bt.tree import load_tree_text
-    from chaser_bt.vision.camera import CameraModel
-    from chaser_bt.vision.detection import Detection
-    from chaser_bt.vision.pipeline import CameraSensor, PipelineConfig, VisionPipeline
     from sitl.bench.in_process import InProcessVehicle
 
     ground = _listener()
@@ -332,9 +340,7 @@ def test_stream_to_ground_sends_status_tracks_cue_estimate_and_boxed_video_and_k
                                    radar_cfg.roll_rad)
     radar = RadarFeed(datagrams, pose, noise=RadarNoise(radar_cfg.sigma_range_m, radar_cfg.sigma_az_rad,
                                                         radar_cfg.sigma_el_rad))
-    detector = lambda image: [Detection((250.0, 180.0, 330.0, 240.0), 0.9, 0, "s1000")]  # noqa: E731
-    camera = CameraSensor(_StillCamera(), VisionPipeline(CameraModel(width_px=640, height_px=480), detector,
-                                                         PipelineConfig(detect_every=1, tracker_kinds=(), focus=False)))
+    camera = _still_camera_sensor()
     tree = load_tree_text(f"""
 version: 1
 trees:
@@ -444,6 +450,58 @@ trees:
     assert frames, "no video from the threaded camera"
     image = cv2.imdecode(np.frombuffer(frames[-1][2], np.uint8), cv2.IMREAD_COLOR)
     assert image.shape == (480, 640, 3) and (image[210, 248:253, 2] > 180).any()  # the box, drawn in red
+
+
+@pytest.mark.parametrize("pipeline", [False, True], ids=["without VisionPipeline", "with VisionPipeline"])
+def test_the_video_carries_frames_only_when_a_vision_pipeline_is_in_the_tree(pipeline):
+    """docs/ground.md: the camera's frames are those a VisionPipeline reads; without one (the doc's
+    HoverAndStream) the stream is status messages and no video."""
+    from types import SimpleNamespace
+
+    from scipy.spatial.transform import Rotation
+
+    from chaser_bt.clock import FunctionClock
+    from chaser_bt.tree import load_tree_text
+    from chaser_bt.vehicle.state import VehicleState
+
+    ground = _listener()
+    ground.setblocking(False)
+    port = ground.getsockname()[1]
+    camera = _still_camera_sensor()
+    vision = "        - ForceSuccess: {child: {VisionPipeline: {}}}\n" if pipeline else ""
+    tree = load_tree_text(f"""
+version: 1
+trees:
+  Main:
+    ReactiveSequence:
+      children:
+{vision}        - StreamToGround: {{host: 127.0.0.1, port: {port}, video_hz: 5, jpeg_quality: 80}}
+""", source="<test>")
+    now = [0.0]
+    clock = FunctionClock(lambda: now[0])
+    bt = py_trees.trees.BehaviourTree(tree.root)
+    bb = py_trees.blackboard.Client(name="test")
+    bb.register_key("/vehicle/state", access=py_trees.common.Access.WRITE)
+    bb.set("/vehicle/state", VehicleState(position_enu=np.array([0.0, 0.0, 20.0]), velocity_enu=np.zeros(3),
+                                          attitude=Rotation.identity()))
+    bt.setup(link=SimpleNamespace(frame=None), clock=clock, camera=camera)
+    for _ in range(20):  # 2 s at 10 Hz
+        bt.tick()
+        now[0] += 0.1
+    bt.shutdown()
+    kinds, assembler, frames = set(), FrameAssembler(), []
+    while True:
+        try:
+            msg = parse_datagram(ground.recv(65535))
+        except BlockingIOError:
+            break
+        if isinstance(msg, dict):
+            kinds.add(msg["type"])
+        elif (whole := assembler.add(msg)) is not None:
+            frames.append(whole)
+    ground.close()
+    assert "status" in kinds
+    assert (9 <= len(frames) <= 11) if pipeline else frames == []  # 5 Hz of video over 2 s, or none
 
 
 def test_the_tree_example_in_the_docs_validates():

@@ -67,6 +67,28 @@ def test_every_radar_option_is_read_before_anything_connects(tmp_path):
         check_sensors(chase, FlightSensorOptions(radar_listen="0.0.0.0:4950", radar_pose_file=binary, camera="0"))
 
 
+def test_a_camera_file_that_is_no_video_is_refused_before_anything_connects(tmp_path):
+    import cv2
+    import numpy as np
+
+    chase = load_tree(TREES / "chase.yaml")
+    radar = dict(radar_listen="0.0.0.0:4950", radar_pose_file=tmp_path / "pose.json")
+    (tmp_path / "pose.json").write_text('{"lat_deg": 1, "lon_deg": 2, "yaw_deg": 0}')
+    (tmp_path / "garbage.dat").write_bytes(bytes(range(256)) * 16)
+    (tmp_path / "empty.mp4").write_bytes(b"")
+    for camera, why in (("garbage.dat", "not a video or image OpenCV can read"), ("empty.mp4", "the file is empty"),
+                        ("", "is a folder")):
+        with pytest.raises(FlightSensorError, match=f"--camera {tmp_path / camera}: {why}"):
+            check_sensors(chase, FlightSensorOptions(camera=str(tmp_path / camera), **radar))
+    video = str(tmp_path / "clip.avi")
+    writer = cv2.VideoWriter(video, cv2.VideoWriter_fourcc(*"MJPG"), 10, (64, 48))
+    for _ in range(3):
+        writer.write(np.zeros((48, 64, 3), np.uint8))
+    writer.release()
+    for camera in (video, "0", "rtsp://192.0.2.1/stream"):  # a device or a stream is not opened before the flight
+        check_sensors(chase, FlightSensorOptions(camera=camera, **radar))
+
+
 def test_the_runner_refuses_to_set_up_a_tree_missing_a_resource():
     tree = _tree("VisionPipeline: {name: eye}")
     runner = MissionRunner(tree, link=None, clock=None)  # type: ignore[arg-type]

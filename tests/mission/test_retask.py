@@ -290,7 +290,7 @@ def _climb(step: str, more: str = "") -> str:
     ('version: 1\ntrees:\n  Climb:\n    ArmAndTakeoff: {altitude_m: "{alt}"}\n', "Climb", _link(), {}, True,
      "SubTree 'Climb' uses no key 'altitude_m'; its keys: alt"),
     (_climb("Hover: {duration_s: -3}"), "Climb", _link(), {}, True,
-     "new.yaml:8:31: port 'duration_s' of Hover must be >= 0, got -3"),
+     "new.yaml:8:31: port 'duration_s' of Hover must be 0..86400, got -3"),
     (_climb("NoSuchNode: {}"), "Climb", _link(), {}, True, "unknown node 'NoSuchNode'"),
     ("version: 1\ntrees: [\n", "Climb", _link(), {}, True, "new.yaml:"),
     (b"\xff binary", "Climb", _link(), {}, True, "byte 0 is not UTF-8"),

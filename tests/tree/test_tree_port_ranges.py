@@ -34,7 +34,7 @@ def xml_problems(body: str) -> list[str]:
     ("leaf", "problem"),
     [
         ("GoTo: {waypoint: [20, 0]}", "m.yaml:6:28: port 'waypoint' of GoTo needs 3 items, got 2: [20.0, 0.0]"),
-        ("Hover: {duration_s: -1}", "m.yaml:6:31: port 'duration_s' of Hover must be >= 0, got -1"),
+        ("Hover: {duration_s: -1}", "m.yaml:6:31: port 'duration_s' of Hover must be 0..86400, got -1"),
         (
             "GoTo: {waypoint: [0, 0, 10], acceptance_radius_m: -0.5}",
             "m.yaml:6:61: port 'acceptance_radius_m' of GoTo must be >= 0, got -0.5",
@@ -59,7 +59,7 @@ def test_every_bad_value_is_reported_together_with_the_other_problems():
     )
     assert found == [
         "m.yaml:6:28: port 'waypoint' of GoTo needs 3 items, got 2: [20.0, 0.0]",
-        "m.yaml:7:31: port 'duration_s' of Hover must be >= 0, got -1",
+        "m.yaml:7:31: port 'duration_s' of Hover must be 0..86400, got -1",
         "m.yaml:8:11: unknown node 'Hovr'; did you mean Hover?",
     ]
 
@@ -130,7 +130,7 @@ INF = "must be a finite number, got inf (a value too large for a float reads as 
         (f"ArmAndTakeoff: {{altitude_m: {'9' * 400}}}", f"m.yaml:6:39: port 'altitude_m' of ArmAndTakeoff {INF}"),
         ('Hover: {duration_s: "inf"}', f"m.yaml:6:31: port 'duration_s' of Hover {INF}"),
         ("Hover: {duration_s: .inf}", f"m.yaml:6:31: port 'duration_s' of Hover {INF}"),
-        ("Hover: {duration_s: .nan}", "m.yaml:6:31: port 'duration_s' of Hover must be >= 0, got nan"),
+        ("Hover: {duration_s: .nan}", "m.yaml:6:31: port 'duration_s' of Hover must be 0..86400, got nan"),
         ("GoTo: {waypoint: [0, .inf, 10]}", f"m.yaml:6:28: port 'waypoint' of GoTo {INF} (in [0.0, inf, 10.0])"),
         ("GoTo: {waypoint: [0, -.inf, 10]}",
          "m.yaml:6:28: port 'waypoint' of GoTo must be a finite number, got -inf (a value too large for a float reads "
@@ -145,6 +145,43 @@ def test_absurd_magnitudes_are_refused_where_a_leaf_bounds_them():
     assert yaml_problems("ArmAndTakeoff: {altitude_m: 100000}") == [
         "m.yaml:6:39: port 'altitude_m' of ArmAndTakeoff must be > 0 and <= 500, got 100000"]
     assert yaml_problems("RHCSearch: {horizon: 1000}") == ["m.yaml:6:32: port 'horizon' of RHCSearch must be 1..8, got 1000"]
+    assert yaml_problems("Hover: {duration_s: 1e12}") == [
+        "m.yaml:6:31: port 'duration_s' of Hover must be 0..86400, got 1000000000000"]
+    assert yaml_problems("LoiterOverFind: {duration_s: 1e6}") == [
+        "m.yaml:6:40: port 'duration_s' of LoiterOverFind must be 0..86400, got 1000000"]
+    assert yaml_problems("Hover: {duration_s: 86400}") == []  # a day is the longest hold
+
+
+def test_a_wait_is_bounded_as_a_hold():
+    """Wait's duration_s takes at most a day, as Hover's and LoiterOverFind's do, in YAML and in XML."""
+    assert yaml_problems("Wait: {duration_s: 1e12}") == [
+        "m.yaml:6:30: port 'duration_s' of Wait must be 0..86400, got 1000000000000"]
+    assert yaml_problems("Wait: {duration_s: -1}") == ["m.yaml:6:30: port 'duration_s' of Wait must be 0..86400, got -1"]
+    assert yaml_problems("Wait: {duration_s: 86400}\nWait: {duration_s: 0}") == []
+    assert xml_problems(
+        """
+        <root BTCPP_format="4">
+          <BehaviorTree ID="M">
+            <Wait duration_s="90000"/>
+          </BehaviorTree>
+        </root>
+        """
+    ) == ["m.xml:3:11: port 'duration_s' of Wait must be 0..86400, got 90000"]
+
+
+@pytest.mark.parametrize(
+    ("leaf", "problem"),
+    [
+        ("ArmAndTakeoff: {altitude_m: -1e308}", "must be > 0 and <= 500, got -1e+308"),
+        ("ArmAndTakeoff: {altitude_m: 1.5e300}", "must be > 0 and <= 500, got 1.5e+300"),
+        (f"RHCSearch: {{horizon: {'9' * 400}}}", "must be 1..8, got an integer of 400 digits"),
+        (f"RHCSearch: {{horizon: {'9' * 19}}}", f"must be 1..8, got {'9' * 19}"),
+    ],
+)
+def test_a_huge_value_is_named_in_a_few_characters(leaf, problem):
+    """Not the 309 digits of -1e308 as an integer, nor an OverflowError for an integer past a float."""
+    (found,) = yaml_problems(leaf)
+    assert found.endswith(problem), found
 
 
 def test_numbers_in_xml_are_finite_on_every_port_and_in_scripts():
@@ -232,7 +269,7 @@ def test_the_node_reference_and_the_groot2_model_show_the_bounds():
     reference = render_node_reference(registry)
     assert "    in  percent: float (required) [0..100]  Minimum remaining capacity (%)" in reference
     assert "    in  altitude_m: float = 20.0 [> 0 and <= 500]  Take-off altitude above home (m)" in reference
-    assert "<input_port name=\"duration_s\" type=\"float\" default=\"0.0\">Hold this long (s); 0 = until halted [&gt;= 0]" in (
+    assert "<input_port name=\"duration_s\" type=\"float\" default=\"0.0\">Hold this long (s); 0 = until halted [0..86400]" in (
         node_model_xml(registry)
     )
 

@@ -94,3 +94,14 @@ def test_a_tree_with_missing_weights_fails_at_setup(tmp_path):
     bt = py_trees.trees.BehaviourTree(tree.root)
     with pytest.raises(FileNotFoundError, match="nope.pt"):
         bt.setup(link=object(), clock=ManualClock(1.0), camera=CameraSensor(_Frames(np.zeros((H, W, 3), np.uint8)), pipeline))
+
+
+def test_a_tree_with_an_empty_weights_file_fails_at_setup_naming_it(tmp_path):
+    """Not torch's "EOFError: Ran out of input": the file, and that it is empty."""
+    empty = tmp_path / "empty.pt"
+    empty.write_bytes(b"")
+    tree = load_tree_text(f"version: 1\ntrees:\n  Test:\n    VisionPipeline: {{weights: '{empty}'}}\n", source="<test>")
+    pipeline = VisionPipeline(CameraModel(width_px=W, height_px=H), lambda image: [], PipelineConfig(detect_every=1, focus=False))
+    bt = py_trees.trees.BehaviourTree(tree.root)
+    with pytest.raises(ValueError, match=f"^{empty}: empty file, not detector weights$"):
+        bt.setup(link=object(), clock=ManualClock(1.0), camera=CameraSensor(_Frames(np.zeros((H, W, 3), np.uint8)), pipeline))

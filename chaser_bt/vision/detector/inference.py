@@ -64,6 +64,8 @@ def _load_blob(path: str | Path) -> dict:
     p = Path(path)
     if not p.exists():
         raise FileNotFoundError(f"detector weights not found: {p}")
+    if p.is_file() and p.stat().st_size == 0:  # torch.load would say only "EOFError: Ran out of input"
+        raise ValueError(f"{p}: empty file, not detector weights")
     return torch.load(p, map_location="cpu", weights_only=False)
 
 

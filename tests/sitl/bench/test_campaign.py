@@ -314,7 +314,9 @@ def test_stopped_campaign_resumes_without_redoing_finished_runs(tmp_path, inputs
     assert [r["key"] for r in saved["rows"]] == [f"field/seed_{s:04d}" for s in range(1, 7)]
     assert saved["aggregates"]["metrics"]["t_airborne_s"]["paper"] == 15.48
     assert set(result.files) == {"json", "markdown", "cdfs", "overhead", "geometry"}
-    assert "| t_airborne_s | 6 | 13.5 |" in (tmp_path / "out/campaign.md").read_text()
+    md = (tmp_path / "out/campaign.md").read_text()
+    assert "| t_airborne_s | 6 | 13.5 |" in md
+    assert "## By scenario" in md and "| field | 6/6 |" in md  # success as runs that succeeded / runs
 
     EXECUTED.clear()
     cm.run_campaign(config, runner=_fake_runner, report=False)
@@ -331,6 +333,30 @@ def test_stopped_campaign_resumes_without_redoing_finished_runs(tmp_path, inputs
     tree.write_text(tree.read_text() + "\n# edited\n")  # another tree: stored results no longer count
     cm.run_campaign(config, runner=_fake_runner, report=False)
     assert len(EXECUTED) == 6
+
+
+def test_report_only_reports_a_campaign_still_writing_into_the_folder(tmp_path, inputs):
+    """``--report-only`` only reads the stored runs and writes the report: it takes no lock, so it reports a
+    campaign still flying into the folder, which refuses a second campaign all the same."""
+    tree, scenario = inputs
+    out = tmp_path / "out"
+    config = CampaignConfig(tree=tree, scenarios=[scenario], seeds=[1, 2, 3], out_dir=out)
+    cm.run_campaign(dataclasses.replace(config, seeds=[1, 2]), runner=_fake_runner, report=False)
+    holder = subprocess.Popen(  # the campaign still flying: it holds the folder
+        [sys.executable, "-c", "import sys; from pathlib import Path; from sitl.bench.out_lock import lock_out_dir\n"
+                               "with lock_out_dir(Path(sys.argv[1])):\n    print('held', flush=True); sys.stdin.read()",
+         str(out)], cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        EXECUTED.clear()
+        partial = cm.run_campaign(dataclasses.replace(config, report_only=True), runner=_fake_runner)
+        assert EXECUTED == [] and [r["seed"] for r in partial.rows] == [1, 2]
+        assert "| t_airborne_s | 2 | 11.5 |" in (out / "campaign.md").read_text()
+        with pytest.raises(cm.OutDirError, match=f"--out {out} is in use by another campaign \\(pid {holder.pid}\\)"):
+            cm.run_campaign(config, runner=_fake_runner)
+        assert EXECUTED == []  # the refused campaign flew nothing
+    finally:
+        holder.communicate("", timeout=30)
 
 
 # -- the command line -----------------------------------------------------------------------------
@@ -486,6 +512,7 @@ def test_rehearsal_report_writes_json_markdown_trace_and_figures(tmp_path):
     assert "| t_acquire_s | 6 | 4.95 | no |" in md  # slower
     assert "| detection_frac | – | 0.66 | – |" in md
     assert "| 0.3 | acquired | by vision |" in md and "![" in md
+    assert "from the start of the rehearsal (`t_airborne_s` counts from the radar validation)" in md
     loaded = FlightTrace.load(files["trace"])
     np.testing.assert_array_equal(loaded.ownship_enu, tr.ownship_enu)
     assert files["overhead"].read_bytes()[:4] == b"\x89PNG"
