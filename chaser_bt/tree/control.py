@@ -9,7 +9,6 @@ simulator speed-up (DESIGN §3).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import py_trees
@@ -238,16 +237,11 @@ class ScriptCondition(Script, register=False):
 class Sleep(Wait, register=False):
     """BT.CPP Sleep: RUNNING until ``msec`` have passed on the mission clock, then SUCCESS (0: at once)."""
 
-    INPUT_PORTS: ClassVar[dict[str, Port]] = {"msec": input_port(int, "milliseconds to sleep", btcpp_type="unsigned")}
+    INPUT_PORTS: ClassVar[dict[str, Port]] = {
+        "msec": input_port(int, "milliseconds to sleep", btcpp_type="unsigned", minimum=0, maximum=MAX_WAIT_S * 1000),
+    }
     DURATION_PORT: ClassVar[str] = "msec"
     UNITS_PER_SECOND: ClassVar[float] = 1000.0
-
-    @classmethod
-    def check_ports(cls, values: Mapping[str, Any], child_count: int) -> PortCheck:
-        value = values.get("msec")
-        if isinstance(value, (int, float)) and not isinstance(value, bool) and not value >= 0:
-            return [("msec", f"msec must be >= 0, got {value}")]
-        return []
 
 
 #: Every built-in node, in the order a model export lists them.

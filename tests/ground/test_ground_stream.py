@@ -309,6 +309,20 @@ class _StillCamera:
         """Nothing to release."""
 
 
+def _drain(ground) -> tuple[dict[str, list], list]:
+    """Everything waiting on the non-blocking ground socket: the JSON messages by type, and the whole video frames."""
+    kinds: dict[str, list] = {}
+    assembler, frames = FrameAssembler(), []
+    while True:
+        try:
+            msg = parse_datagram(ground.recv(65535))
+        except BlockingIOError:
+            return kinds, frames
+        if isinstance(msg, dict):
+            kinds.setdefault(msg["type"], []).append(msg)
+        elif (whole := assembler.add(msg)) is not None:
+            frames.append(whole)
+
 def _still_camera_sensor():
     """The still scene through a pipeline whose detector always finds the drone in the middle."""
     from chaser_bt.vision.camera import CameraModel
@@ -361,17 +375,7 @@ trees:
     vehicle.run_until(lambda: (runner.tick_if_due() and False), 2.0)
     assert runner.status == py_trees.common.Status.RUNNING
     assert vehicle.sim.time_s - t0 == pytest.approx(2.0, abs=0.05)
-    kinds: dict[str, list] = {}
-    assembler, frames = FrameAssembler(), []
-    while True:
-        try:
-            msg = parse_datagram(ground.recv(65535))
-        except BlockingIOError:
-            break
-        if isinstance(msg, dict):
-            kinds.setdefault(msg["type"], []).append(msg)
-        elif (whole := assembler.add(msg)) is not None:
-            frames.append(whole)
+    kinds, frames = _drain(ground)
     ground.close()
     runner.stop()
     assert 19 <= len(kinds["status"]) <= 21  # one a tick at 10 Hz
@@ -489,16 +493,7 @@ trees:
         bt.tick()
         now[0] += 0.1
     bt.shutdown()
-    kinds, assembler, frames = set(), FrameAssembler(), []
-    while True:
-        try:
-            msg = parse_datagram(ground.recv(65535))
-        except BlockingIOError:
-            break
-        if isinstance(msg, dict):
-            kinds.add(msg["type"])
-        elif (whole := assembler.add(msg)) is not None:
-            frames.append(whole)
+    kinds, frames = _drain(ground)
     ground.close()
     assert "status" in kinds
     assert (9 <= len(frames) <= 11) if pipeline else frames == []  # 5 Hz of video over 2 s, or none

@@ -169,6 +169,29 @@ def test_a_wait_is_bounded_as_a_hold():
     ) == ["m.xml:3:11: port 'duration_s' of Wait must be 0..86400, got 90000"]
 
 
+def test_a_sleep_is_bounded_as_a_wait_in_milliseconds():
+    """BT.CPP's Sleep takes 0 to a day's 86,400,000 ms; a negative one is named as before."""
+    assert xml_problems(
+        """
+        <root BTCPP_format="4">
+          <BehaviorTree ID="M">
+            <Sequence><Sleep msec="86400000"/><Sleep msec="0"/></Sequence>
+          </BehaviorTree>
+        </root>
+        """
+    ) == []
+    assert xml_problems(
+        """
+        <root BTCPP_format="4">
+          <BehaviorTree ID="M">
+            <Sequence><Sleep msec="86400001"/><Sleep msec="-5"/></Sequence>
+          </BehaviorTree>
+        </root>
+        """
+    ) == ["m.xml:3:22: port 'msec' of Sleep must be 0..86400000, got 86400001",
+          "m.xml:3:46: port 'msec' of Sleep must be 0..86400000, got -5"]
+
+
 @pytest.mark.parametrize(
     ("leaf", "problem"),
     [
