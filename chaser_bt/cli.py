@@ -167,6 +167,12 @@ def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     p.add_argument("--camera-size", type=_size, metavar="WxH",
                    help=f"resize camera frames to this size, px, {MIN_CAMERA_SIDE_PX} to {MAX_CAMERA_SIDE_PX} a side "
                         "(default: as captured)")
+    p.add_argument("--camera-mount", choices=arg.CAMERA_MOUNTS, default="fixed",
+                   help="how the camera is carried: fixed to the airframe, leaning with it, or on a two-axis "
+                        "stabilising gimbal that holds its tilt below the horizon (docs/vision.md; default fixed)")
+    p.add_argument("--camera-tilt", type=arg.camera_tilt, default=10.0, metavar="DEG",
+                   help="the camera's optical axis, deg down from the airframe's forward axis (fixed) or from the "
+                        "horizon (stabilised), between -90 and 90 (default 10)")
     p.add_argument("--perception", choices=("thread", "inline"), default="thread",
                    help="run the camera pipeline in its own thread beside the tick (default thread: the tick "
                         "reads its latest estimate) or inside the tick (inline)")
@@ -522,7 +528,8 @@ def _sensor_options(args: argparse.Namespace):
                                radar_hosts=frozenset(args.radar_from) if args.radar_from else None,
                                uplink_listen=args.uplink, uplink_key_file=args.uplink_key,
                                uplink_hosts=frozenset(args.uplink_from or ()), camera=args.camera,
-                               camera_size=args.camera_size, telemetry=not args.no_telemetry,
+                               camera_size=args.camera_size, camera_mount=args.camera_mount,
+                               camera_tilt_deg=args.camera_tilt, telemetry=not args.no_telemetry,
                                perception=args.perception)
 
 

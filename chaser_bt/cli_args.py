@@ -127,6 +127,11 @@ groot2_port = _number(int, lambda v: 1 <= v <= 65534, "in 1-65534 (Groot2 serves
 MAX_TICK_RATE_HZ = 1000.0
 tick_rate = _number(float, lambda v: math.isfinite(v) and 0 < v <= MAX_TICK_RATE_HZ,
                     f"in (0, {MAX_TICK_RATE_HZ:g}] (Hz; the vehicle's clock counts milliseconds)")
+#: chaser_bt.vision.camera.MOUNTS (the CLI does not import the camera model's scipy).
+CAMERA_MOUNTS = ("fixed", "stabilised")
+#: ``run --camera-tilt``: the optical axis below the airframe's forward axis or the horizon, deg (a scenario's
+#: ``camera.tilt_deg`` takes the same range).
+camera_tilt = _number(float, lambda v: math.isfinite(v) and -90 < v < 90, "in (-90, 90) (deg down)")
 #: ``sitl --speedup``: the simulator alone runs a few hundred times real time on a laptop core, so past 1000 a
 #: speed-up is only "as fast as it can"; below 0.01 a simulated second takes more than a wall minute and a half.
 MIN_SPEEDUP, MAX_SPEEDUP = 0.01, 1000.0

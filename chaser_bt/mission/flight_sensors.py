@@ -60,6 +60,8 @@ class FlightSensorOptions:
     uplink_hosts: frozenset[str] = frozenset()  # believed sources (empty: any that signs)
     camera: str | None = None
     camera_size: tuple[int, int] | None = None
+    camera_mount: str = "fixed"  # a chaser_bt.vision.camera.MOUNTS name
+    camera_tilt_deg: float = 10.0  # down, below the body's forward axis (fixed) or the horizon (stabilised)
     telemetry: bool = True
     perception: str = "thread"
 
@@ -251,7 +253,8 @@ def _camera(options: FlightSensorOptions, clock: Any) -> Any:
         w = int(source.capture.get(3)) or 1920  # CAP_PROP_FRAME_WIDTH / HEIGHT
         h = int(source.capture.get(4)) or 1080
     # One intra-op thread for the detector (torch: process-wide; onnxruntime: its session).
-    sensor = CameraSensor(source, VisionPipeline(CameraModel(width_px=w, height_px=h), Detector(threads=1)))
+    model = CameraModel(width_px=w, height_px=h, tilt_rad=math.radians(options.camera_tilt_deg), mount=options.camera_mount)
+    sensor = CameraSensor(source, VisionPipeline(model, Detector(threads=1)))
     if options.perception == "inline":
         return sensor
     from chaser_bt.vision.perception import PerceptionWorker

@@ -1,4 +1,4 @@
-"""Pixel <-> world for the fixed camera (paper section 3.1, "Coordinate Transformation").
+"""Pixel <-> world for the on-board camera (paper section 3.1, "Coordinate Transformation").
 
 The transform needs (1) the ownship attitude in ENU, (2) the camera mount, (3) the FOV and (4) the
 resolution; (2)-(4) are the :class:`~chaser_bt.vision.camera.CameraModel`. As in the paper, frames are
@@ -51,8 +51,9 @@ class Projector:
     camera: CameraModel
 
     def camera_quaternion(self, body_attitude: Rotation) -> np.ndarray:
-        """q(optical -> ENU) = q(body -> ENU) * q(optical -> body), scalar-last."""
-        q = quat_multiply(body_attitude.as_quat(), self.camera._cam_to_body.as_quat())
+        """q(optical -> ENU) = q(mount -> ENU) * q(optical -> mount), scalar-last; the mount is the body
+        itself for a fixed camera (:meth:`CameraModel.mount_attitude`)."""
+        q = quat_multiply(self.camera.mount_attitude(body_attitude).as_quat(), self.camera._cam_to_body.as_quat())
         return q / np.linalg.norm(q)
 
     def bearing_enu(self, pixels: np.ndarray, body_attitude: Rotation) -> np.ndarray:

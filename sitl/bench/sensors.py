@@ -350,7 +350,8 @@ def build_sensors(vehicle: LockStepVehicle, options: SensorOptions, seed: int) -
 def _build(out: MissionSensors, vehicle: LockStepVehicle, options: SensorOptions, seed: int) -> None:
     sim = vehicle.sim
     scenario = sim.scenario
-    model = CameraModel(width_px=int(options.camera_size[0]), height_px=int(options.camera_size[1]))
+    model = CameraModel(width_px=int(options.camera_size[0]), height_px=int(options.camera_size[1]),
+                        tilt_rad=math.radians(scenario.camera.tilt_deg), mount=scenario.camera.mount)
     if options.camera and options.camera_lag and options.render_process:
         # Spawned first: its imports and its world are made while the radar is calibrated here.
         out.render_process = RenderProcess(model, scenario.camera_world, seed)

@@ -22,6 +22,7 @@ import yaml
 
 from chaser_bt.geo import GeoPoint
 from chaser_bt.shipped import NotShipped, resolve_tree
+from chaser_bt.vision.camera import MOUNTS
 from sitl.vehicle.airframe import AirframeParams
 from sitl.vehicle.params import ParamStore
 from sitl.vehicle.physics import WindParams
@@ -90,6 +91,15 @@ class ScriptedTarget:
 
 
 @dataclass(frozen=True)
+class OnboardCamera:
+    """How the chaser carries its camera: ``mount`` (a :data:`chaser_bt.vision.camera.MOUNTS` name) and
+    the optical axis's tilt, deg down, below the body's forward axis (fixed) or the horizon (stabilised)."""
+
+    mount: str = "fixed"
+    tilt_deg: float = 10.0
+
+
+@dataclass(frozen=True)
 class ScheduledRetask:
     """A retask a rehearsal gives the mission at simulated time ``at_s``: fly the tree file ``tree``
     instead, or with ``subtree`` put its tree in place of that subtree only (the simulator ignores it;
@@ -120,6 +130,7 @@ class Scenario:
     pilot: PilotScript | None = None
     ground_station: tuple[GroundStationEvent, ...] = ()
     camera_world: WorldSpec = field(default_factory=WorldSpec)  # what the rendered camera looks at
+    camera: OnboardCamera = field(default_factory=OnboardCamera)  # how the chaser carries it
     birds: tuple[BirdSpec, ...] = ()
     retasks: tuple[ScheduledRetask, ...] = ()
 
@@ -235,8 +246,8 @@ class _Parser:
         if not isinstance(d, Mapping):
             raise self.fail("", "a mapping", d)
         allowed = ("name", "home", "wind", "airframe", "params", "boot", "faults", "time_limit_s", "start_unix_s",
-                   "radar", "targets", "intruders", "pilot", "ground_station", "camera_world", "birds", "lighting",
-                   "retask")
+                   "radar", "targets", "intruders", "pilot", "ground_station", "camera_world", "camera", "birds",
+                   "lighting", "retask")
         problems: list[str] = []
 
         def checked(read, *args, default=None):
@@ -269,6 +280,7 @@ class _Parser:
             ground_station=checked(self.ground_station, top.get("ground_station")),
             retasks=checked(self.retasks, top.get("retask"), default=()),
             camera_world=checked(self.camera_world, top.get("camera_world"), default=WorldSpec()),
+            camera=checked(self.camera, top.get("camera"), default=OnboardCamera()),
             intruders=checked(self.intruders, top.get("intruders"), {t.name for t in targets},
                               int(params.get("SYSID_THISMAV", 1))),
         )
@@ -299,6 +311,16 @@ class _Parser:
                 raise self.fail(f"camera_world.{key}", "true or false", v)
             flags[key] = v
         return WorldSpec(family, seed, **flags)
+
+    def camera(self, d: Any) -> OnboardCamera:
+        m = self.mapping(d, "camera", ("mount", "tilt_deg"))
+        mount = m.get("mount", OnboardCamera.mount)
+        if mount not in MOUNTS:
+            raise self.fail("camera.mount", "one of " + ", ".join(MOUNTS), mount)
+        tilt = self.number(m, "tilt_deg", "camera", OnboardCamera.tilt_deg)
+        if not -90.0 < tilt < 90.0:
+            raise self.fail("camera.tilt_deg", "a number in (-90, 90)", tilt)
+        return OnboardCamera(mount, tilt)
 
     def home(self, d: Any) -> tuple[GeoPoint, float]:
         if d is None:

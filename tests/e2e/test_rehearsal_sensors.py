@@ -26,7 +26,7 @@ from sitl.bench.sensors import (
     calibrated_radar_pose,
     surveyed_radar_pose,
 )
-from sitl.world.scenario import Scenario, load_scenario
+from sitl.world.scenario import OnboardCamera, Scenario, load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 CHASE = ROOT / "sitl" / "scenarios" / "chase.yaml"
@@ -164,11 +164,18 @@ def test_build_sensors_gives_only_what_the_scenario_provides():
     sensors = build_sensors(vehicle, SensorOptions(radar_pose="surveyed", telemetry=False, camera_size=(160, 120)), 1)
     assert sorted(sensors.resources) == ["camera", "radar"] and isinstance(sensors.resources["camera"], CameraSensor)
     assert vehicle.link.frame is not None  # the radar pose is placed in the frame of the home the vehicle reported
-    assert sensors.frame_source.camera.width_px == 160
+    assert sensors.frame_source.camera.width_px == 160 and sensors.camera.pipeline.camera is sensors.frame_source.camera
+    # The chase scenario carries its camera on a gimbal, 10 deg below the horizon.
+    assert (sensors.camera.pipeline.camera.mount, sensors.camera.pipeline.camera.tilt_rad) == ("stabilised", math.radians(10))
     # The rendered camera reads out the pipeline's regions of interest unless whole frames are asked for.
     assert sensors.frame_source.reads_regions and not sensors.camera.whole_frames
     whole = build_sensors(InProcessVehicle(load_scenario(CHASE), 1), SensorOptions(radar=False, whole_frames=True), 1)
     assert whole.camera.whole_frames
+    # The scenario's camera key says how the chaser carries its camera: the renderer and the pipeline alike.
+    fixed = dataclasses.replace(load_scenario(CHASE), camera=OnboardCamera("fixed", 25.0))
+    held = build_sensors(InProcessVehicle(fixed, 1), SensorOptions(radar=False, camera_size=(160, 120)), 1)
+    assert held.frame_source.camera is held.camera.pipeline.camera
+    assert (held.camera.pipeline.camera.mount, held.camera.pipeline.camera.tilt_rad) == ("fixed", math.radians(25))
     with pytest.raises(ValueError, match="radar_pose"):
         SensorOptions(radar_pose="truth")
 

@@ -115,6 +115,10 @@ def test_camera_from_a_video_file_and_telemetry_listener(tmp_path):
     assert not camera.running and camera.health(0.0) == "perception worker stopped"
     inline = build_flight_sensors(link, ManualClock(), FlightSensorOptions(camera=path, perception="inline", telemetry=False))
     assert isinstance(inline["camera"], CameraSensor)
+    assert (inline["camera"].pipeline.camera.mount, inline["camera"].pipeline.camera.tilt_rad) == ("fixed", math.radians(10))
+    held = build_flight_sensors(link, ManualClock(), FlightSensorOptions(
+        camera=path, perception="inline", telemetry=False, camera_mount="stabilised", camera_tilt_deg=20.0))
+    assert (held["camera"].pipeline.camera.mount, held["camera"].pipeline.camera.tilt_rad) == ("stabilised", math.radians(20))
     with pytest.raises(FlightSensorError, match="--camera"):
         build_flight_sensors(link, ManualClock(), FlightSensorOptions(camera=str(tmp_path / "missing.avi"), telemetry=False))
     with pytest.raises(FlightSensorError, match="perception must be one of thread, inline"):

@@ -69,3 +69,35 @@ def test_bad_camera_parameters_are_refused():
         CameraModel(hfov_rad=4.0)
     with pytest.raises(ValueError, match="p_detect"):
         CameraModel(p_detect=0.0)
+    with pytest.raises(ValueError, match="mount must be one of fixed, stabilised"):
+        CameraModel(mount="gimbal")
+
+
+def test_a_fixed_camera_leans_with_the_airframe_and_a_stabilised_one_keeps_its_tilt_below_the_horizon():
+    # Heading 30 deg north of east, pitched 30 deg nose down and rolled 15 deg, as in a dash.
+    att = Rotation.from_euler("ZYX", [math.radians(30), math.radians(30), math.radians(15)])
+    fixed = CameraModel(width_px=640, height_px=480, tilt_rad=math.radians(10))
+    level = CameraModel(width_px=640, height_px=480, tilt_rad=math.radians(10), mount="stabilised")
+    down, heading = math.radians(10), math.radians(30)
+    expected = [math.cos(down) * math.cos(heading), math.cos(down) * math.sin(heading), -math.sin(down)]
+    assert np.allclose(level.camera_to_enu(att).apply([0, 0, 1]), expected, atol=1e-12)
+    pitched = Rotation.from_euler("ZYX", [math.radians(30), math.radians(30), 0.0])
+    axis = fixed.camera_to_enu(pitched).apply([0, 0, 1])
+    assert math.degrees(math.asin(-axis[2])) == pytest.approx(40.0, abs=1e-9)  # 10 deg mount + 30 deg pitch
+    # The image's right edge stays level on the gimbal (no roll) and tilts with the roll when fixed.
+    right = level.camera_to_enu(att).apply([1, 0, 0])
+    assert right[2] == pytest.approx(0.0, abs=1e-12)
+    assert abs(fixed.camera_to_enu(att).apply([1, 0, 0])[2]) > 0.2
+    # A target level with the chaser 60 m ahead: 40 deg above the fixed camera's axis (top edge at
+    # 36.5 deg: out of view), 10 deg above the stabilised one's (in view).
+    target = np.array([[60 * math.cos(heading), 60 * math.sin(heading), 0.0]])
+    assert not fixed.visible(target, np.zeros(3), pitched)[0] and level.visible(target, np.zeros(3), pitched)[0]
+
+
+def test_a_stabilised_camera_looks_the_same_at_any_pitch_and_roll():
+    cam = CameraModel(width_px=640, height_px=480, mount="stabilised")
+    pts = np.array([[60.0, 5.0, -8.0], [40.0, -20.0, -30.0], [80.0, 30.0, 5.0]])
+    flat = cam.project(pts, np.zeros(3), Rotation.from_euler("z", 0.2))[0]
+    for pitch, roll in ((0.5, 0.0), (-0.4, 0.3), (0.2, -0.6)):
+        att = Rotation.from_euler("ZYX", [0.2, pitch, roll])
+        assert np.allclose(cam.project(pts, np.zeros(3), att)[0], flat, atol=1e-9)

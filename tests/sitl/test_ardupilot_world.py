@@ -223,6 +223,14 @@ def test_the_command_line_offers_exactly_the_rotor_airframes():
     assert set(CLI_AIRFRAMES) == set(AIRFRAMES)
 
 
+def test_the_command_line_offers_exactly_the_camera_mounts():
+    """cli_args does not import the camera model either, so it names the mounts itself."""
+    from chaser_bt.cli_args import CAMERA_MOUNTS
+    from chaser_bt.vision.camera import MOUNTS
+
+    assert CAMERA_MOUNTS == MOUNTS
+
+
 def test_renamed_parameters_are_written_under_both_names_in_each_unit():
     from sitl.ardupilot.process import with_renamed
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -9,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from chaser_bt.vision.camera import CameraModel
+from chaser_bt.vision.camera import MOUNTS, CameraModel
 from chaser_bt.vision.projection import AttitudeSmoother, Projector, quat_multiply, quat_rotate
 
 angles = st.floats(-math.pi, math.pi)
@@ -44,11 +45,12 @@ def test_enu_to_pixel_to_enu_is_exact(yaw, pitch, roll, dist, du, dv):
     assert np.allclose(proj.point_enu(back, r, pos, att), point, atol=1e-9)
 
 
-@given(angles, small, small)
-def test_quaternion_bearing_agrees_with_the_camera_model(yaw, pitch, roll):
+@given(angles, small, small, st.sampled_from(MOUNTS))
+def test_quaternion_bearing_agrees_with_the_camera_model(yaw, pitch, roll, mount):
     att = Rotation.from_euler("ZYX", [yaw, pitch, roll])
+    cam = dataclasses.replace(CAM, mount=mount)
     px = np.array([[0.0, 0.0], [639.0, 479.0], [320.0, 240.0], [100.0, 400.0]])
-    assert np.allclose(Projector(CAM).bearing_enu(px, att), CAM.ray_enu(px, att), atol=1e-12)
+    assert np.allclose(Projector(cam).bearing_enu(px, att), cam.ray_enu(px, att), atol=1e-12)
 
 
 def test_image_centre_of_a_level_untilted_camera_looks_along_the_heading():

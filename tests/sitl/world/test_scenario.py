@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from sitl.world.scenario import Fault, Scenario, ScenarioError, load_scenario
+from sitl.world.scenario import Fault, OnboardCamera, Scenario, ScenarioError, load_scenario
 
 PATROL = Path(__file__).resolve().parents[3] / "sitl" / "scenarios" / "patrol.yaml"
 HOME = {"lat_deg": 42.5, "lon_deg": -71.6, "alt_m": 80.0}
@@ -60,6 +60,9 @@ def test_overrides_reach_their_dataclasses():
     ({"home": HOME, "faults": {"at_s": 1}}, "faults", "a list"),
     ({"home": HOME, "time_limit_s": -5}, "time_limit_s", ">= 0"),
     ({"home": HOME, "traffic": []}, "traffic", "unknown key"),
+    ({"home": HOME, "camera": {"mount": "gimbal"}}, "camera.mount", "one of fixed, stabilised"),
+    ({"home": HOME, "camera": {"tilt_deg": 95}}, "camera.tilt_deg", "in (-90, 90)"),
+    ({"home": HOME, "camera": {"tilt": 10}}, "camera.tilt", "did you mean tilt_deg"),
 ])
 def test_errors_name_the_source_and_key_path(doc, path, expected):
     with pytest.raises(ScenarioError) as e:
@@ -94,3 +97,15 @@ def test_every_section_s_error_is_listed_at_once():
     lines = str(e.value).splitlines()
     assert len(lines) == 4 and all(line.startswith("field.yaml: ") for line in lines)
     assert [line.split(":")[1].strip() for line in lines] == ["traffic", "wind.speed_mps", "faults", "time_limit_s"]
+
+
+def test_the_camera_key_says_how_the_chaser_carries_its_camera():
+    assert Scenario.from_dict({"home": HOME}).camera == OnboardCamera("fixed", 10.0)
+    held = Scenario.from_dict({"home": HOME, "camera": {"mount": "stabilised", "tilt_deg": 15}})
+    assert held.camera == OnboardCamera("stabilised", 15.0)
+    # The chase scenarios carry the paper's gimbal; search and rescue and the patrol keep the fixed camera.
+    shipped = Path(__file__).resolve().parents[3] / "sitl" / "scenarios"
+    for path in [shipped / "chase.yaml", shipped / "chase_radar_off.yaml", *sorted((shipped / "hard").glob("*.yaml"))]:
+        assert load_scenario(path).camera.mount == "stabilised", path.name
+    for name in ("sar.yaml", "sar_lying.yaml", "patrol.yaml"):
+        assert load_scenario(shipped / name).camera.mount == "fixed", name
