@@ -323,6 +323,23 @@ def _drain(ground) -> tuple[dict[str, list], list]:
         elif (whole := assembler.add(msg)) is not None:
             frames.append(whole)
 
+
+def _stream_tree(port: int, vision: bool = True, video_hz: float = 5):
+    """A tree that streams to the ground on ``port`` (video at ``video_hz``), reading the camera through a
+    VisionPipeline or not."""
+    from chaser_bt.tree import load_tree_text
+
+    pipeline = "        - ForceSuccess: {child: {VisionPipeline: {}}}\n" if vision else ""
+    return load_tree_text(f"""
+version: 1
+trees:
+  Main:
+    ReactiveSequence:
+      children:
+{pipeline}        - StreamToGround: {{host: 127.0.0.1, port: {port}, video_hz: {video_hz}, jpeg_quality: 80}}
+""", source="<test>")
+
+
 def _still_camera_sensor():
     """The still scene through a pipeline whose detector always finds the drone in the middle."""
     from chaser_bt.vision.camera import CameraModel
@@ -339,7 +356,6 @@ def test_stream_to_ground_sends_status_tracks_cue_estimate_and_boxed_video_and_k
     from chaser_bt.radar.feed import RadarFeed, RadarNoise
     from chaser_bt.radar.geometry import RadarPose
     from chaser_bt.radar.stream import QueueDatagramSource
-    from chaser_bt.tree import load_tree_text
     from sitl.bench.in_process import InProcessVehicle
 
     ground = _listener()
@@ -355,15 +371,7 @@ def test_stream_to_ground_sends_status_tracks_cue_estimate_and_boxed_video_and_k
     radar = RadarFeed(datagrams, pose, noise=RadarNoise(radar_cfg.sigma_range_m, radar_cfg.sigma_az_rad,
                                                         radar_cfg.sigma_el_rad))
     camera = _still_camera_sensor()
-    tree = load_tree_text(f"""
-version: 1
-trees:
-  Main:
-    ReactiveSequence:
-      children:
-        - ForceSuccess: {{child: {{VisionPipeline: {{}}}}}}
-        - StreamToGround: {{host: 127.0.0.1, port: {port}, video_hz: 5, jpeg_quality: 80}}
-""", source="<test>")
+    tree = _stream_tree(port)
     runner = MissionRunner(tree, vehicle.link, vehicle.clock, rate_hz=10.0,
                            resources={"camera": camera, "radar": radar})
     py_trees.blackboard.Blackboard.set("/target/cue", TargetCue(t=0.0, position_enu=np.array([100.0, 50.0, 30.0]),
@@ -404,7 +412,6 @@ def test_stream_to_ground_sends_the_boxed_video_of_a_threaded_camera():
     from scipy.spatial.transform import Rotation
 
     from chaser_bt.clock import WallClock
-    from chaser_bt.tree import load_tree_text
     from chaser_bt.vehicle.state import VehicleState
     from chaser_bt.vision.camera import CameraModel
     from chaser_bt.vision.detection import Detection
@@ -418,15 +425,7 @@ def test_stream_to_ground_sends_the_boxed_video_of_a_threaded_camera():
     worker = PerceptionWorker(CameraSensor(_StillCamera(), VisionPipeline(
         CameraModel(width_px=640, height_px=480), detector,
         PipelineConfig(detect_every=1, tracker_kinds=(), confirm_hits=1, focus=False))), clock, max_fps=50.0)
-    tree = load_tree_text(f"""
-version: 1
-trees:
-  Main:
-    ReactiveSequence:
-      children:
-        - ForceSuccess: {{child: {{VisionPipeline: {{}}}}}}
-        - StreamToGround: {{host: 127.0.0.1, port: {port}, video_hz: 20, jpeg_quality: 80}}
-""", source="<test>")
+    tree = _stream_tree(port, video_hz=20)
     bt = py_trees.trees.BehaviourTree(tree.root)
     bb = py_trees.blackboard.Client(name="test")
     bb.register_key("/vehicle/state", access=py_trees.common.Access.WRITE)
@@ -465,22 +464,13 @@ def test_the_video_carries_frames_only_when_a_vision_pipeline_is_in_the_tree(pip
     from scipy.spatial.transform import Rotation
 
     from chaser_bt.clock import FunctionClock
-    from chaser_bt.tree import load_tree_text
     from chaser_bt.vehicle.state import VehicleState
 
     ground = _listener()
     ground.setblocking(False)
     port = ground.getsockname()[1]
     camera = _still_camera_sensor()
-    vision = "        - ForceSuccess: {child: {VisionPipeline: {}}}\n" if pipeline else ""
-    tree = load_tree_text(f"""
-version: 1
-trees:
-  Main:
-    ReactiveSequence:
-      children:
-{vision}        - StreamToGround: {{host: 127.0.0.1, port: {port}, video_hz: 5, jpeg_quality: 80}}
-""", source="<test>")
+    tree = _stream_tree(port, vision=pipeline)
     now = [0.0]
     clock = FunctionClock(lambda: now[0])
     bt = py_trees.trees.BehaviourTree(tree.root)
