@@ -22,7 +22,7 @@ import yaml
 
 from chaser_bt.geo import GeoPoint
 from chaser_bt.shipped import NotShipped, resolve_tree
-from chaser_bt.vision.camera import MOUNTS
+from chaser_bt.vision.camera import MOUNTS, CameraModel
 from sitl.vehicle.airframe import AirframeParams
 from sitl.vehicle.params import ParamStore
 from sitl.vehicle.physics import WindParams
@@ -95,8 +95,8 @@ class OnboardCamera:
     """How the chaser carries its camera: ``mount`` (a :data:`chaser_bt.vision.camera.MOUNTS` name) and
     the optical axis's tilt, deg down, below the body's forward axis (fixed) or the horizon (stabilised)."""
 
-    mount: str = "fixed"
-    tilt_deg: float = 10.0
+    mount: str = CameraModel.mount
+    tilt_deg: float = math.degrees(CameraModel.tilt_rad)
 
 
 @dataclass(frozen=True)
