@@ -340,6 +340,23 @@ trees:
 """, source="<test>")
 
 
+def _set_up_at_rest(tree, clock, camera) -> py_trees.trees.BehaviourTree:
+    """The tree set up with ``clock`` and ``camera``, no link, and the aircraft level 20 m over home."""
+    from types import SimpleNamespace
+
+    from scipy.spatial.transform import Rotation
+
+    from chaser_bt.vehicle.state import VehicleState
+
+    bt = py_trees.trees.BehaviourTree(tree.root)
+    bb = py_trees.blackboard.Client(name="test")
+    bb.register_key("/vehicle/state", access=py_trees.common.Access.WRITE)
+    bb.set("/vehicle/state", VehicleState(position_enu=np.array([0.0, 0.0, 20.0]), velocity_enu=np.zeros(3),
+                                          attitude=Rotation.identity()))
+    bt.setup(link=SimpleNamespace(frame=None), clock=clock, camera=camera)
+    return bt
+
+
 def _still_camera_sensor():
     """The still scene through a pipeline whose detector always finds the drone in the middle."""
     from chaser_bt.vision.camera import CameraModel
@@ -407,12 +424,7 @@ def test_stream_to_ground_sends_status_tracks_cue_estimate_and_boxed_video_and_k
 
 def test_stream_to_ground_sends_the_boxed_video_of_a_threaded_camera():
     """A real flight's camera runs in a PerceptionWorker: the video is its latest processed frame and box."""
-    from types import SimpleNamespace
-
-    from scipy.spatial.transform import Rotation
-
     from chaser_bt.clock import WallClock
-    from chaser_bt.vehicle.state import VehicleState
     from chaser_bt.vision.camera import CameraModel
     from chaser_bt.vision.detection import Detection
     from chaser_bt.vision.perception import PerceptionWorker
@@ -426,12 +438,7 @@ def test_stream_to_ground_sends_the_boxed_video_of_a_threaded_camera():
         CameraModel(width_px=640, height_px=480), detector,
         PipelineConfig(detect_every=1, tracker_kinds=(), confirm_hits=1, focus=False))), clock, max_fps=50.0)
     tree = _stream_tree(port, video_hz=20)
-    bt = py_trees.trees.BehaviourTree(tree.root)
-    bb = py_trees.blackboard.Client(name="test")
-    bb.register_key("/vehicle/state", access=py_trees.common.Access.WRITE)
-    bb.set("/vehicle/state", VehicleState(position_enu=np.array([0.0, 0.0, 20.0]), velocity_enu=np.zeros(3),
-                                          attitude=Rotation.identity()))
-    bt.setup(link=SimpleNamespace(frame=None), clock=clock, camera=worker)
+    bt = _set_up_at_rest(tree, clock, worker)
     assembler, frames = FrameAssembler(), []
     try:
         deadline = time.monotonic() + 20.0
@@ -459,12 +466,7 @@ def test_stream_to_ground_sends_the_boxed_video_of_a_threaded_camera():
 def test_the_video_carries_frames_only_when_a_vision_pipeline_is_in_the_tree(pipeline):
     """docs/ground.md: the camera's frames are those a VisionPipeline reads; without one (the doc's
     HoverAndStream) the stream is status messages and no video."""
-    from types import SimpleNamespace
-
-    from scipy.spatial.transform import Rotation
-
     from chaser_bt.clock import FunctionClock
-    from chaser_bt.vehicle.state import VehicleState
 
     ground = _listener()
     ground.setblocking(False)
@@ -473,12 +475,7 @@ def test_the_video_carries_frames_only_when_a_vision_pipeline_is_in_the_tree(pip
     tree = _stream_tree(port, vision=pipeline)
     now = [0.0]
     clock = FunctionClock(lambda: now[0])
-    bt = py_trees.trees.BehaviourTree(tree.root)
-    bb = py_trees.blackboard.Client(name="test")
-    bb.register_key("/vehicle/state", access=py_trees.common.Access.WRITE)
-    bb.set("/vehicle/state", VehicleState(position_enu=np.array([0.0, 0.0, 20.0]), velocity_enu=np.zeros(3),
-                                          attitude=Rotation.identity()))
-    bt.setup(link=SimpleNamespace(frame=None), clock=clock, camera=camera)
+    bt = _set_up_at_rest(tree, clock, camera)
     for _ in range(20):  # 2 s at 10 Hz
         bt.tick()
         now[0] += 0.1
