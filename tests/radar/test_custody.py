@@ -321,3 +321,139 @@ def test_one_report_outside_the_gate_is_one_miss_however_many_ticks_see_it():
                     picture(0.8, track(1, 0.8, (4, 100, 30), (5, 8.0, 0)))])
     assert [e.kind for e in ev] == ["released"]
 
+
+
+def _companion_swap(hidden_at_swap: bool, until_s: float = 20.0, params: CustodyParams | None = None):
+    """The target (track 1) flies east at 3 m/s along y = 100; a bird keeps 16 m north of it (track 2)
+    at its velocity, so their paths never part. At t = 2.0 the radar swaps the ids: track 1 reports
+    the bird, its velocity turning over as the bird turns north: (3, 3, 0) at 2.2 (16 m and 3 m/s
+    off: inside the carrier's 17.3 m and 2 + 8 * 0.2 = 3.6 m/s gate), (3, 7, 0) and (3, 11, 0) after
+    (misses); track 2 reports the target from then on (``hidden_at_swap``: not in the 2.2 s scan)."""
+    target = lambda t: (3.0 * t, 100.0, 30.0)
+    bird = lambda t: (3.0 * t, 116.0, 30.0)
+    turning = {11: (3.0, 3.0, 0.0), 12: (3.0, 7.0, 0.0)}
+    pics = []
+    for k in range(0, int(round(until_s / 0.2)) + 1):
+        t = 0.2 * k
+        if k <= 10:
+            pics.append(picture(t, track(1, t, target(t), (3, 0, 0)), track(2, t, bird(t), (3, 0, 0))))
+        else:
+            swapped = track(1, t, bird(t), turning.get(k, (3, 11, 0)))
+            pics.append(picture(t, swapped) if hidden_at_swap and k == 11 else
+                        picture(t, track(2, t, target(t), (3, 0, 0)), swapped))
+    return fly(start(0.0, target(0.0), (3, 0, 0)), pics, params)
+
+
+def test_an_id_swap_with_a_bird_keeping_beside_the_target_is_seen_at_once_as_their_offset_reversing():
+    # At 2.2 track 1 is 16 m north of track 2, where at 2.0 it was 16 m south: reversed (0 m off the
+    # reversal, 32 m off the same offset: 8 sigma of the four reports' 2 m per axis).
+    c, ev = _companion_swap(hidden_at_swap=False)
+    assert [e.kind for e in ev] == ["handover"] and "offset from each other reversed" in ev[0].reason
+    assert ev[0].t == pytest.approx(2.2) and c.track_id == 2 and c.track_ids == (1, 2) and 1 in c.apart_ids
+    np.testing.assert_allclose(c.position_enu, (60, 100, 30))
+
+
+def test_a_swap_seen_late_goes_back_to_the_report_before_it():
+    # Track 2 is missing from the 2.2 s scan, so the reversal is not seen and track 1 confirms the bird.
+    # The second miss (2.6 s) releases it; custody goes back to its report 2 s before the first miss
+    # (2.4 - 2.0 = 0.4 s), when track 2 was the bird: track 2 now fits the target's path (0 m off)
+    # better than the bird's (16 m off a 36.5 m gate: 0.44 > 0.2) and takes it over.
+    c, ev = _companion_swap(hidden_at_swap=True)
+    assert [e.kind for e in ev] == ["released", "handover"] and "back to its report at 0.4 s" in ev[0].reason
+    assert "id swap" in ev[1].reason and c.track_id == 2 and not c.lost
+    np.testing.assert_allclose(c.position_enu, (60, 100, 30))
+    # Without the look-back the release keeps the bird's report of 2.2 s as the target's last.
+    c, ev = _companion_swap(hidden_at_swap=True, until_s=2.6, params=CustodyParams(swap_lookback_s=0.0))
+    assert ev[0].kind == "released" and "back to" not in ev[0].reason
+
+
+def test_a_track_far_above_the_prediction_is_not_the_target_however_long_the_coast():
+    """A hovering target drops at t = 0. After 10 s the position gate is 3.5 * sqrt(24) = 17.1 m of
+    radar error plus 0.5 * 8 * 2.5^2 + 20 * 7.5 = 175 m of manoeuvre: 192 m. In height it is
+    3.5 * sqrt(8) = 9.9 m plus 0.5 * 4 * 1.5^2 + 6 * 8.5 = 55.5 m of climb: 65.4 m. A track 70 m
+    straight above the prediction is refused; one 60 m above may be the target."""
+    from chaser_bt.radar.custody import _position_gate, _vertical_gate
+
+    c = start(vel=(0, 0, 0))
+    report = track(9, 10.0, (0, 100, 100), (0, 0, 0), first=10.0)
+    assert _position_gate(c, report, CustodyParams()) == pytest.approx(3.5 * math.sqrt(24.0) + 25 + 150, abs=1e-9)
+    assert _vertical_gate(c, report, CustodyParams()) == pytest.approx(
+        3.5 * math.sqrt(8.0) + 0.5 * 4 * 1.5**2 + 6 * 8.5, abs=1e-9)
+    high, _ = fly(c, [picture(10.0, report)])
+    assert high.track_id is None and 9 in high.refused_ids
+    lower = fly(c, [picture(10.0, track(9, 10.0, (0, 100, 90), (0, 0, 0), first=10.0))])[0]
+    assert lower.track_id == 9
+
+
+def _beside_pass(sight: Sight | None):
+    """The target (track 1, 2 m/s east along y = 100) flies with a companion (track 2) 16 m north, at
+    its velocity (beyond the 15 m of a duplicate). Track 1 ends after 1.0 s; at 1.2 s a new id (9)
+    appears 7 m north of the prediction (2.4, 100): it fits the target (7 m off) better than the
+    companion's past (9 m off) by only 2 / 17.3 = 0.12 of a gate, under the crowd margin of 0.2, so
+    by the radar alone it waits."""
+    target = lambda t: (2.0 * t, 100.0, 30.0)
+    other = lambda t: (2.0 * t, 116.0, 30.0)
+    pics = [picture(0.2 * k, track(1, 0.2 * k, target(0.2 * k), (2, 0, 0)), track(2, 0.2 * k, other(0.2 * k), (2, 0, 0)))
+            for k in range(0, 6)]
+    pics.append(picture(1.2, track(2, 1.2, other(1.2), (2, 0, 0)), track(9, 1.2, (2.4, 107, 30), (2, 0, 0), first=1.2)))
+    c = start(0.0, target(0.0), (2, 0, 0))
+    for pic in pics:
+        c, ev = track_custody(c, pic, None, sight)
+    return c
+
+
+def test_in_a_crowd_the_one_track_on_the_cameras_line_of_sight_takes_the_target_over():
+    assert _beside_pass(None).track_id is None
+    # The camera, 100 m west, sees the target along +x: track 9 lies 7 m off that line (2.5 sigma of
+    # sqrt(4 + 4) = 2.83 m), the companion 16 m off (5.7 sigma): only track 9 is on it.
+    camera = np.array([-97.6, 100.0, 30.0])
+    assert _beside_pass(Sight(1.2, camera, np.array([1.0, 0.0, 0.0]))).track_id == 9
+    # Looking 8 m north (track 9 1 m off the line, the companion 8 m: both within 3.5 sigma), the
+    # camera cannot name one: it waits.
+    d = np.array([100.0, 8.0, 0.0])
+    assert _beside_pass(Sight(1.2, camera, d / np.linalg.norm(d))).track_id is None
+
+
+def test_a_lost_target_is_reacquired_on_an_old_track_only_where_the_camera_sees_it():
+    p = CustodyParams(max_coast_s=1.0)
+    c = start(vel=(0, 0, 0))
+    c, ev = fly(c, [picture(1.5)], p)
+    assert c.lost
+    # Track 4 has been in the sky since before the loss, confident, 20 m from where the target was lost.
+    old = track(4, 2.0, (20, 100, 30), (0, 0, 0), conf=0.9, first=-5.0)
+    assert fly(c, [picture(2.0, old)], p)[0].lost
+    camera = np.array([20.0, 0.0, 30.0])  # 100 m south of it, looking north at it
+    seen, ev = track_custody(c, picture(2.0, old), p, Sight(2.0, camera, np.array([0.0, 1.0, 0.0])))
+    assert not seen.lost and seen.track_id == 4 and "line of sight" in ev[0].reason
+
+
+def _crossing_swap(turning: list[float], end_mps: float):
+    """Two drones cross 10 m apart at 10 m/s, the target (track 1) east along y = 100, the other
+    (track 2) west along y = 110; at 2.0 s, side by side, the radar swaps their ids. Track 2 then
+    reports the target with the velocities ``turning`` (east, m/s; then ``end_mps``): its tracker
+    turning over from the other drone's -10 m/s."""
+    target = lambda t: (10.0 * t - 10.0, 100.0, 30.0)
+    other = lambda t: (30.0 - 10.0 * t, 110.0, 30.0)
+    pics = []
+    for k in range(0, 26):
+        t = 0.2 * k
+        if k <= 9:
+            pics.append(picture(t, track(1, t, target(t), (10, 0, 0)), track(2, t, other(t), (-10, 0, 0))))
+        else:
+            v = turning[k - 10] if k - 10 < len(turning) else end_mps
+            pics.append(picture(t, track(2, t, target(t), (v, 0, 0)), track(1, t, other(t), (-v, 0, 0))))
+    c, ev = fly(start(0.0, target(0.0), (10, 0, 0)), pics)
+    return c, ev, target(5.0)
+
+
+def test_after_a_swap_the_new_carriers_lagging_velocity_is_not_the_targets():
+    # -4, 0, 3 m/s... judged on velocity (14 and 10 m/s off the target's 10) track 2 would be released
+    # at once; for vel_lag_s (1 s) custody judges its position only and keeps the target's velocity.
+    c, ev, at_end = _crossing_swap([-4.0, 0.0, 3.0, 5.5, 7.0, 8.0, 9.0, 9.5], 10.0)
+    assert [e.kind for e in ev] == ["handover"] and ev[0].t == pytest.approx(2.0)
+    assert c.track_id == 2 and c.misses == 0
+    np.testing.assert_allclose(c.position_enu, at_end)
+    # The target speeds up meanwhile: the first velocity judged after the second (14 m/s at 3.2 s)
+    # is 4 m/s off the kept 10, outside 2 + 8 * 0.2 but inside the 2 + 8 * 1.4 its 1.4 s unmeasured allow.
+    c, ev, _ = _crossing_swap([-4.0, 0.0, 3.0, 6.0, 9.0, 12.0, 14.0, 15.5], 16.0)
+    assert [e.kind for e in ev] == ["handover"] and c.track_id == 2 and c.velocity_enu[0] == 16.0
