@@ -76,6 +76,10 @@ class PipelineConfig:
         focus_min_zoom: a window zooming less than this is not used: a target that large is detected
             on the whole frame, at the scale the detector was trained on.
         full_frame_every: without a cue, every k-th detector frame sees the whole frame even with a focus.
+        cue_min_score: with a fresh cue, the detector keeps boxes in its focus window down to this score
+            (None: its own threshold; a detector without a ``detect(image, conf_threshold)`` keeps its
+            own): the cue's gate is the independent check a low score lacks, and a target 60-120 m out,
+            a few pixels across, scores low.
         cue_gate_deg: a track's bearing may differ from the cue's by this much, plus three sigma of the
             cue's position error seen from the camera. A cue just off the image is looked for at its
             edge; one further outside the image than the gate reaches gets no detector frame (nothing
@@ -130,6 +134,7 @@ class PipelineConfig:
     focus_max_zoom: float = 2.0
     focus_min_zoom: float = 1.25
     full_frame_every: int = 3
+    cue_min_score: float | None = 0.15
     cue_gate_deg: float = 4.0
     cue_range_ratio: float = 5.0
     detector_input_px: int = 320
@@ -266,7 +271,7 @@ class VisionPipeline:
                 self.focused_frames += 1
                 window = plan.window
                 region = window.region
-                dets = [replace(d, box=window.to_frame(d.box)) for d in self.detector(window.crop(image))]
+                dets = [replace(d, box=window.to_frame(d.box)) for d in self._detect(window.crop(image), cue_enu is not None)]
             dets = [d for d in dets if not self.config.classes or d.class_name in self.config.classes]
             if not self._bank_tuned:
                 self._tune_bank()
@@ -361,6 +366,13 @@ class VisionPipeline:
         if cue_enu is None and self.detector_frames % cfg.full_frame_every == 0:
             return None, False
         return window, True
+
+    def _detect(self, image: np.ndarray, cued: bool) -> list:
+        """The detector on ``image``, keeping boxes down to ``cue_min_score`` when ``cued``."""
+        detect = getattr(self.detector, "detect", None)
+        if cued and self.config.cue_min_score is not None and callable(detect):
+            return list(detect(image, conf_threshold=self.config.cue_min_score))
+        return list(self.detector(image))
 
     def _followed(self) -> Track | None:
         """The track followed, while the trackers still hold it."""

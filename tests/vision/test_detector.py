@@ -390,3 +390,14 @@ def test_a_square_window_the_network_can_take_runs_at_its_own_size_and_anything_
     for shape in ((320, 320, 3), (256, 256, 3), (416, 416, 3), (300, 300, 3), (480, 640, 3), (448, 448, 3)):
         det(rng.integers(0, 256, shape, dtype=np.uint8))
     assert seen == [(320, 320), (256, 256), (416, 416), (416, 416), (416, 416), (416, 416)]
+
+
+def test_a_threshold_given_per_call_is_the_detectors_own_threshold_for_that_call():
+    """Random noise makes hundreds of low-scoring boxes: asked for boxes down to 0.01, the detector
+    built at 0.25 gives exactly what one built at 0.01 gives, and its own call still stops at 0.25."""
+    img = (np.random.default_rng(0).random((480, 640, 3)) * 255).astype(np.uint8)
+    at_025, at_001 = Detector(conf_threshold=0.25), Detector(conf_threshold=0.01)
+    low = at_025.detect(img, conf_threshold=0.01)
+    assert [(d.box, d.score) for d in low] == [(d.box, d.score) for d in at_001(img)] and len(low) > 0
+    assert all(d.score >= 0.25 for d in at_025(img)) and at_025.conf_threshold == 0.25
+    assert len(at_025(img)) < len(low)

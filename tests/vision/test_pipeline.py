@@ -415,3 +415,41 @@ def test_a_radar_cue_corrects_the_range_of_a_distant_target_whose_box_is_drawn_t
     base = PipelineConfig(detect_every=1, tracker_kinds=(), focus=False)
     assert last_range(replace(base, cue_fusion_max_age_s=0.0)) == pytest.approx(100.0, rel=0.05)
     assert last_range(base) == pytest.approx(150.0, rel=0.1)
+
+
+class _Thresholded(_Script):
+    """A scripted detector that keeps only boxes scoring at least its threshold, 0.25 unless the call
+    gives one, and says which threshold each call used."""
+
+    def __init__(self, script):
+        super().__init__(script)
+        self.used: list[float] = []
+
+    def __call__(self, image):
+        return self.detect(image)
+
+    def detect(self, image, conf_threshold=None):
+        threshold = 0.25 if conf_threshold is None else conf_threshold
+        self.used.append(threshold)
+        return [d for d in super().__call__(image) if d.score >= threshold]
+
+
+def test_with_a_cue_the_focus_window_keeps_boxes_down_to_the_cue_min_score():
+    from scipy.spatial.transform import Rotation
+
+    from chaser_bt.cue import TargetCue
+
+    cam = CameraModel(width_px=640, height_px=480, tilt_rad=0.0)
+    pose = OwnshipPose(0.0, np.array([0.0, 0.0, 10.0]), np.zeros(3), Rotation.identity())
+    cue = TargetCue(0.0, np.array([100.0, 0.0, 10.0]), 4.0 * np.eye(3))  # dead ahead, 100 m: a focus window
+    faint = [[((120.0, 140.0, 152.0, 172.0), 0.2)]]  # a far target's box, scoring 0.2
+    for config, cued, found, used in [(PipelineConfig(tracker_kinds=()), cue, True, [0.15]),
+                                      (PipelineConfig(tracker_kinds=(), cue_min_score=None), cue, False, [0.25]),
+                                      (PipelineConfig(tracker_kinds=()), None, False, [0.25])]:
+        det = _Thresholded(faint)
+        est = VisionPipeline(cam, det, config).process(Frame(0.0, np.zeros((480, 640, 3), np.uint8), 0), pose, cue=cued)
+        assert (est is not None) == found and det.used == used
+    # A detector without a per-call threshold (a plain callable) is called as it is.
+    est = VisionPipeline(cam, _Script(faint), PipelineConfig(tracker_kinds=())).process(
+        Frame(0.0, np.zeros((480, 640, 3), np.uint8), 0), pose, cue=cue)
+    assert est is not None

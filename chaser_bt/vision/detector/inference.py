@@ -211,6 +211,11 @@ class Detector:
         return load_model(self.weights)
 
     def __call__(self, frame_bgr: np.ndarray) -> list[Detection]:
+        return self.detect(frame_bgr)
+
+    def detect(self, frame_bgr: np.ndarray, conf_threshold: float | None = None) -> list[Detection]:
+        """The detections in a frame scoring at least ``conf_threshold`` (None: the detector's own)."""
+        threshold = self.conf_threshold if conf_threshold is None else conf_threshold
         h, w = frame_bgr.shape[:2]
         if h == w <= self.image_size and h % self.stride == 0:  # a focus window: a size the network takes as it is
             img, scale, (px, py) = frame_bgr, 1.0, (0, 0)
@@ -224,7 +229,7 @@ class Detector:
 
             with torch.inference_mode():
                 raw = self.model(torch.from_numpy(x)).numpy()
-        out = decode_head(raw, self.stride, self.conf_threshold)
+        out = decode_head(raw, self.stride, threshold)
         if self.multi_label:  # one candidate per class and cell (darknet's evaluation), NMS per class
             n, c = len(out), out.shape[1] - 5
             cls = np.repeat(np.arange(c)[None], n, 0).ravel()
@@ -234,7 +239,7 @@ class Detector:
             cls = out[:, 5:].argmax(1)
             score = out[:, 4] * out[np.arange(len(out)), 5 + cls]
             boxes = out[:, :4]
-        m = np.flatnonzero(score >= self.conf_threshold)
+        m = np.flatnonzero(score >= threshold)
         m = m[np.argsort(-score[m])[:_MAX_NMS]]  # the best few hundred candidates go to the (quadratic) NMS
         boxes, score, cls = boxes[m], score[m], cls[m]
         offset = cls[:, None] * 1e5 if self.multi_label else 0.0  # per-class NMS by shifting classes apart
@@ -248,7 +253,7 @@ class Detector:
             return dets
         dets = self.refiner(frame_bgr, dets)
         if self.refiner.config.scores:  # re-scored (never upwards): the threshold holds for the new scores
-            dets = sorted((d for d in dets if d.score >= self.conf_threshold), key=lambda d: -d.score)
+            dets = sorted((d for d in dets if d.score >= threshold), key=lambda d: -d.score)
         return dets
 
 
