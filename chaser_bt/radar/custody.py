@@ -74,7 +74,7 @@ class CustodyParams:
             a Phantom 4 in sport mode reaches 8).
         max_speed_mps: nor faster than this (a Phantom 4 in sport mode: 20 m/s).
         accel_v_mps2, max_vertical_mps: the same for climbs and dives, which a multirotor flies far
-            slower than it flies across (a Phantom 4: 6 m/s up, 4 down): a track far above or below
+            slower than it flies across (a Phantom 4 climbs at 6 m/s): a track far above or below
             the prediction is not the target even when the position gate, grown over a long coast,
             would reach it (a bird or clutter 100 m up).
         vel_gate_mps: smallest velocity gate for a new track taking the target over (m/s).
